@@ -1,0 +1,29 @@
+"""Open-loop constant voltage: no feedback. Used to check the plant against closed-form solutions."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import WheelController, compact, per_wheel
+
+
+class OpenLoop(WheelController):
+    """Apply a constant voltage ``(u_R, u_L)`` whatever the wheel speeds.
+
+    Parameters
+    ----------
+    voltage : float or (float, float)
+        Voltage per wheel [V].
+    """
+
+    name = "open_loop"
+
+    def __init__(self, voltage=0.0) -> None:
+        self.voltage = per_wheel(voltage, "controller.voltage")
+
+    def command(self, w, w_d, w_d_dot):
+        self.s = w_d - w
+        return np.broadcast_to(self.voltage, w.shape).copy()
+
+    def parameters(self):
+        return {"voltage": compact(self.voltage)}

@@ -1,0 +1,106 @@
+"""Sliding-mode wheel-speed controller with optional disturbance observers (paper 3.1-3.3; MODEL.md 6).
+
+SMC, SMC-NDO and SMC-NDO-NNO are this one class with zero, one or two observers.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import ConfigError
+from .base import SWITCHING_FUNCTIONS, WheelController, compact, per_wheel
+
+SURFACES = ("proportional", "integral")
+
+
+class SMC(WheelController):
+    """Sliding-mode control law (17) with the observers' estimate subtracted.
+
+    Surface ``proportional`` (the paper's (10)): ``s = e = w_d - w`` and
+    ``u = g^-1 (w_d' - f(w) + lambda s + K sw(s/Phi) - d_hat)`` (17), lambda read as the linear term of an
+    exponential reaching law and Phi as the boundary layer (MODEL.md 6, Resolution).
+    Surface ``integral``: ``s = e + lambda int e`` and ``u = g^-1 (w_d' - f(w) + lambda e + K sw(s/Phi) - d_hat)``,
+    the equivalent control of that surface plus the switching term.
+    ``d_hat`` is the sum of the observers' estimates (NDO (21), NN (24)); zero without observers.
+
+    Parameters
+    ----------
+    lam : float or (float, float)
+        lambda per wheel [1/s] (Table 3: 25).
+    switching_gain : float or (float, float)
+        K per wheel [rad/s^2] (Table 3: 12).
+    boundary_layer : float
+        Phi [rad/s] (Table 3: 0.1); unused by ``switching='sign'``.
+    surface : {'proportional', 'integral'}
+    switching : {'sign', 'sat', 'tanh'}
+        The switching function ``sw`` of (15): ``sgn`` as printed, or its boundary-layer ``sat``/``tanh``.
+    observers : sequence
+        Disturbance observers (:class:`NonlinearDisturbanceObserver`, :class:`RBFNetworkObserver`).
+    name : str
+        Label in tables and plots.
+    """
+
+    def __init__(self, lam=25.0, switching_gain=12.0, boundary_layer: float = 0.1,
+                 surface: str = "proportional", switching: str = "sat",
+                 observers: Sequence = (), name: str = "smc") -> None:
+        self.lam = per_wheel(lam, "controller.lam")
+        self.switching_gain = per_wheel(switching_gain, "controller.switching_gain")
+        self.boundary_layer = float(boundary_layer)
+        if surface not in SURFACES:
+            raise ConfigError("controller.surface", surface, f"must be one of {', '.join(SURFACES)}")
+        if switching not in SWITCHING_FUNCTIONS:
+            raise ConfigError("controller.switching", switching,
+                              f"must be one of {', '.join(SWITCHING_FUNCTIONS)}")
+        self.surface, self.switching = surface, switching
+        self._sw = SWITCHING_FUNCTIONS[switching]
+        self.observers = [obs for obs in observers if obs is not None]
+        self.name = name
+
+    def bind(self, model, dt):
+        super().bind(model, dt)
+        for obs in self.observers:
+            obs.bind(model, dt)
+        return self
+
+    def reset(self, w0):
+        super().reset(w0)
+        self.error_integral = np.zeros_like(w0)
+        for obs in self.observers:
+            obs.reset(w0)
+
+    def command(self, w, w_d, w_d_dot):
+        e = w_d - w
+        self.e = e
+        if self.surface == "integral":
+            s = e + self.lam * self.error_integral
+            linear = self.lam * e
+        else:
+            s = e
+            linear = self.lam * s
+        self.s = s
+        d_hat = 0.0
+        for obs in self.observers:
+            part = obs.estimate(w)
+            d_hat = d_hat + part
+            if obs.part == "ndo":
+                self.d_hat_ndo = part
+            else:
+                self.d_hat_nn = part
+        x = s if self.switching == "sign" else s * (1.0 / self.boundary_layer)
+        a = w_d_dot - self.model.f(w) + linear + self.switching_gain * self._sw(x) - d_hat
+        return self.model.g_inverse_times(a)
+
+    def update(self, w, u_applied, u_command):
+        if self.surface == "integral":
+            self.error_integral = self.error_integral + self.dt * self.e
+        for obs in self.observers:
+            obs.update(w, u_applied, self.s)
+
+    def parameters(self):
+        params = {"lambda": compact(self.lam), "K": compact(self.switching_gain),
+                  "Phi": self.boundary_layer, "surface": self.surface, "switching": self.switching}
+        for obs in self.observers:
+            params.update(obs.parameters())
+        return params

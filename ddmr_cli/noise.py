@@ -1,0 +1,59 @@
+"""Seeded noise: one generator per run, drawn in chunks, so a seed gives the same stream in any batch.
+
+Each run owns ``numpy.random.default_rng(seed)``. Per step it consumes ``CHANNELS`` standard normals
+(right-wheel roughness, left-wheel roughness, damping uncertainty), always all of them, so that the same seed
+sees the same terrain whatever the scenario and controller ("same seed, same terrain"). The streams are
+turned into OU processes with an exact discretisation, in chunks whose size does not change the numbers.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from scipy.signal import lfilter
+
+from .terrain import ou_coefficients
+
+CHANNELS = 3  # roughness right, roughness left, damping uncertainty
+CHUNK_BYTES = 48 * 2**20  # memory for one chunk of draws, whatever the batch size
+
+
+class OUStreams:
+    """Unit-variance OU processes per run and channel, produced chunk by chunk.
+
+    Parameters
+    ----------
+    seeds : sequence of int
+        One per run.
+    dt : float
+        Step [s].
+    correlation_times : sequence of float
+        One per channel [s].
+    """
+
+    def __init__(self, seeds: Sequence[int], dt: float, correlation_times: Sequence[float]) -> None:
+        self.generators = [np.random.default_rng(int(s)) for s in seeds]
+        coeffs = [ou_coefficients(dt, tc) for tc in correlation_times]
+        self.a = np.array([c[0] for c in coeffs])
+        self.b = np.array([c[1] for c in coeffs])
+        n_runs, n_ch = len(self.generators), len(coeffs)
+        # The state before the first step is drawn from the stationary distribution N(0, 1).
+        self.state = np.empty((n_runs, n_ch))
+        for i, rng in enumerate(self.generators):
+            rng.standard_normal(out=self.state[i])
+        self.chunk_steps = int(max(16, min(4096, CHUNK_BYTES // (8 * n_ch * max(n_runs, 1)))))
+
+    def next_chunk(self, n_steps: int) -> np.ndarray:
+        """The next ``n_steps`` values, shape ``(n_steps, n_runs, channels)``."""
+        n_runs, n_ch = self.state.shape
+        xi = np.empty((n_runs, n_steps, n_ch))
+        for i, rng in enumerate(self.generators):
+            rng.standard_normal(out=xi[i])
+        out = np.empty((n_steps, n_runs, n_ch))
+        for c in range(n_ch):
+            a, b = self.a[c], self.b[c]
+            path, _ = lfilter([b], [1.0, -a], xi[:, :, c], axis=1, zi=(a * self.state[:, c])[:, None])
+            out[:, :, c] = path.T
+        self.state = out[-1].copy()
+        return out

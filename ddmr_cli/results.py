@@ -1,0 +1,87 @@
+"""The result of a batch of runs: per-run metrics (whole run, per zone, per phase), divergence, time series."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .metrics import METRICS
+
+if TYPE_CHECKING:  # pandas is imported only when a table is asked for
+    import pandas as pd
+
+#: Time-series channels kept for the seeds asked for (one array per channel, shape (n_steps,)).
+SERIES_CHANNELS = (
+    "t", "x", "y", "theta", "x_ref", "y_ref", "theta_ref", "e_x", "e_y", "e_theta", "deviation", "distance",
+    "w_right", "w_left", "w_d_right", "w_d_left", "u_right", "u_left", "s_right", "s_left",
+    "d_true_right", "d_true_left", "d_hat_ndo_right", "d_hat_ndo_left", "d_hat_nn_right", "d_hat_nn_left",
+    "roughness", "damping_scale", "zone",
+)
+
+
+@dataclass
+class SimulationResult:
+    """Outcome of :func:`ddmr_cli.simulate` for one controller, one scenario and a batch of seeds.
+
+    Attributes
+    ----------
+    seeds : list of int
+    controller, scenario : str
+    segments : list of str
+        ``total``, then ``zone:<name>`` per terrain zone and ``phase:<name>`` per scenario phase.
+    metrics : dict of str -> ndarray (n_runs, n_segments)
+        Run metrics (:data:`ddmr_cli.metrics.METRICS`), NaN for diverged runs and empty segments.
+    diverged : ndarray of bool (n_runs,)
+    divergence_time : ndarray (n_runs,)
+        Time of divergence [s], NaN for runs that did not diverge.
+    series : dict of seed -> dict of channel -> ndarray (n_steps,)
+        Time series of the seeds asked for.
+    """
+
+    seeds: list[int]
+    controller: str
+    scenario: str
+    segments: list[str]
+    metrics: dict[str, np.ndarray]
+    diverged: np.ndarray
+    divergence_time: np.ndarray
+    series: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+    dt: float = 1e-3
+    duration: float = 0.0
+    wall_time: float = 0.0
+
+    def metric(self, name: str, segment: str = "total") -> np.ndarray:
+        """One metric for every run, in seed order."""
+        return self.metrics[name][:, self.segments.index(segment)]
+
+    def to_pandas(self, segments: bool = False) -> "pd.DataFrame":
+        """Tidy per-run table: one row per seed (``segments=False``) or per seed and segment (``True``).
+
+        Columns: ``controller, scenario, seed, [segment,] status, divergence_time`` and every metric.
+        """
+        import pandas as pd
+
+        segs = list(enumerate(self.segments)) if segments else [(0, "total")]
+        rows = []
+        for i, seed in enumerate(self.seeds):
+            for j, seg in segs:
+                row = {"controller": self.controller, "scenario": self.scenario, "seed": seed}
+                if segments:
+                    row["segment"] = seg
+                row["status"] = "diverged" if self.diverged[i] else "ok"
+                row["divergence_time"] = self.divergence_time[i]
+                row.update({m: float(self.metrics[m][i, j]) for m in METRICS})
+                rows.append(row)
+        return pd.DataFrame(rows)
+
+    def summary(self) -> dict[str, float]:
+        """Across-seed mean and SD of every whole-run metric (Table 4's statistic), plus run counts."""
+        ok = ~self.diverged
+        out: dict[str, float] = {"runs": len(self.seeds), "diverged": int(self.diverged.sum())}
+        for m in METRICS:
+            vals = self.metric(m)[ok]
+            out[f"{m}_mean"] = float(np.mean(vals)) if vals.size else float("nan")
+            out[f"{m}_sd"] = float(np.std(vals, ddof=1)) if vals.size > 1 else float("nan")
+        return out

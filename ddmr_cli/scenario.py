@@ -1,0 +1,67 @@
+"""Scenarios: which disturbances act when (MODEL.md section 5; paper Fig. 10).
+
+A scenario is a list of phases by time. In each phase the terrain roughness and the parametric uncertainty
+(the true damping ``B(t) = B_nom (1 + delta(t))``) are on or off; rolling resistance always acts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Phase:
+    """From ``start`` [s] to the next phase's start."""
+
+    name: str
+    start: float
+    roughness: bool = True
+    uncertainty: bool = False
+
+
+@dataclass(frozen=True)
+class DampingUncertainty:
+    """The true damping's relative deviation delta(t): an OU process, clipped (MODEL.md 5, scenario 2).
+
+    Parameters
+    ----------
+    correlation_time : float
+        [s] (MODEL.md: 0.5).
+    std : float
+        Stationary standard deviation (MODEL.md: 0.4).
+    low, high : float
+        Clip bounds of delta (MODEL.md: -0.5, 1.0), so ``B_true`` stays in ``[0.5, 2] B_nom``.
+    """
+
+    correlation_time: float = 0.5
+    std: float = 0.4
+    low: float = -0.5
+    high: float = 1.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named sequence of phases plus the uncertainty process.
+
+    Paper scenario 1: one phase, terrain only. Scenario 2: ``[0, 5) s`` terrain only, ``[5, 10) s``
+    uncertainty only (roughness off, mu kept), ``[10, 15] s`` both.
+    """
+
+    name: str = "scenario"
+    phases: Sequence[Phase] = field(default_factory=lambda: (Phase("all", 0.0),))
+    uncertainty: DampingUncertainty = field(default_factory=DampingUncertainty)
+
+    def __post_init__(self):
+        object.__setattr__(self, "phases", tuple(self.phases))
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.phases]
+
+    def phase_index(self, t: np.ndarray) -> np.ndarray:
+        """Index of the phase each time lies in."""
+        starts = np.array([p.start for p in self.phases[1:]], dtype=float)
+        return np.searchsorted(starts, t, side="right")
