@@ -3,7 +3,7 @@
 Python API (model code, no Hydra needed)::
 
     from ddmr_cli import Simulation, simulate, SMC, NonlinearDisturbanceObserver, paper_terrain, paper_scenario
-    sim = Simulation(controller=SMC(observers=[NonlinearDisturbanceObserver(50.0)]),
+    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0)),
                      terrain=paper_terrain(), scenario=paper_scenario(1))
     result = simulate(sim, seeds=range(50))
     result.to_pandas()

@@ -25,8 +25,6 @@ class NonlinearDisturbanceObserver:
         Observer gain L per wheel [1/s] (Table 3: 50).
     """
 
-    part = "ndo"
-
     def __init__(self, gain=50.0) -> None:
         self.gain = per_wheel(gain, "controller.ndo.gain")
 
@@ -67,8 +65,6 @@ class RBFNetworkObserver:
     center_min, center_max : float
         Range of the centres [rad/s] (MODEL.md: -40, 40).
     """
-
-    part = "nn"
 
     def __init__(self, n_neurons: int = 10, width: float = 2.0, learning_rate=50.0,
                  center_min: float = -40.0, center_max: float = 40.0) -> None:

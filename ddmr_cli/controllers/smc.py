@@ -5,12 +5,11 @@ SMC, SMC-NDO and SMC-NDO-NNO are this one class with zero, one or two observers.
 
 from __future__ import annotations
 
-from typing import Sequence
-
 import numpy as np
 
 from ..errors import ConfigError
 from .base import SWITCHING_FUNCTIONS, WheelController, compact, per_wheel
+from .observers import NonlinearDisturbanceObserver, RBFNetworkObserver
 
 SURFACES = ("proportional", "integral")
 
@@ -36,15 +35,18 @@ class SMC(WheelController):
     surface : {'proportional', 'integral'}
     switching : {'sign', 'sat', 'tanh'}
         The switching function ``sw`` of (15): ``sgn`` as printed, or its boundary-layer ``sat``/``tanh``.
-    observers : sequence
-        Disturbance observers (:class:`NonlinearDisturbanceObserver`, :class:`RBFNetworkObserver`).
+    ndo : NonlinearDisturbanceObserver, optional
+        The NDO of 3.2 (SMC-NDO); None for none.
+    nn : RBFNetworkObserver, optional
+        The RBF network observer of 3.3 (SMC-NDO-NNO with ``ndo``); None for none.
     name : str
         Label in tables and plots.
     """
 
     def __init__(self, lam=25.0, switching_gain=12.0, boundary_layer: float = 0.1,
                  surface: str = "proportional", switching: str = "sat",
-                 observers: Sequence = (), name: str = "smc") -> None:
+                 ndo: NonlinearDisturbanceObserver | None = None, nn: RBFNetworkObserver | None = None,
+                 name: str = "smc") -> None:
         self.lam = per_wheel(lam, "controller.lam")
         self.switching_gain = per_wheel(switching_gain, "controller.switching_gain")
         self.boundary_layer = float(boundary_layer)
@@ -55,7 +57,8 @@ class SMC(WheelController):
                               f"must be one of {', '.join(SWITCHING_FUNCTIONS)}")
         self.surface, self.switching = surface, switching
         self._sw = SWITCHING_FUNCTIONS[switching]
-        self.observers = [obs for obs in observers if obs is not None]
+        self.ndo, self.nn = ndo, nn
+        self.observers = [obs for obs in (ndo, nn) if obs is not None]
         self.name = name
 
     def bind(self, model, dt):
@@ -80,14 +83,11 @@ class SMC(WheelController):
             s = e
             linear = self.lam * s
         self.s = s
-        d_hat = 0.0
-        for obs in self.observers:
-            part = obs.estimate(w)
-            d_hat = d_hat + part
-            if obs.part == "ndo":
-                self.d_hat_ndo = part
-            else:
-                self.d_hat_nn = part
+        if self.ndo is not None:
+            self.d_hat_ndo = self.ndo.estimate(w)
+        if self.nn is not None:
+            self.d_hat_nn = self.nn.estimate(w)
+        d_hat = self.d_hat_ndo + self.d_hat_nn
         x = s if self.switching == "sign" else s * (1.0 / self.boundary_layer)
         a = w_d_dot - self.model.f(w) + linear + self.switching_gain * self._sw(x) - d_hat
         return self.model.g_inverse_times(a)

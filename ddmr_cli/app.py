@@ -1,0 +1,131 @@
+"""The Hydra task function behind ``ddmr run``: one job = one controller x scenario x batch of seeds.
+
+It writes into Hydra's output dir: ``config.yaml`` (resolved), ``metrics.csv`` (tidy, one row per seed),
+``segments.csv`` (per seed and terrain zone / scenario phase), ``series.npz`` (kept time series),
+``plots/*.png`` and, last, ``summary.json`` (status, config hash, across-seed statistics).
+A job whose directory already holds a complete summary with the same config hash is skipped (resume).
+In a sweep a failing job records its failure and returns, so the other jobs and the aggregation go on.
+"""
+
+from __future__ import annotations
+
+import logging
+import platform
+import time
+import traceback
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from . import io
+from .config import build_simulation, config_hash, seeds_of, validate_config
+from .config.build import result_config
+
+log = logging.getLogger("ddmr")
+
+HEADLINE = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae", "chattering", "d_est_mae", "mean_voltage")
+
+
+class ProgressLog:
+    """Logs ``label: steps done/total (percent), elapsed`` every ``every`` seconds and at the end."""
+
+    def __init__(self, label: str, n_runs: int, every: float = 2.0) -> None:
+        self.label, self.n_runs, self.every = label, n_runs, every
+        self.start = self.last = time.perf_counter()
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.perf_counter()
+        if now - self.last >= self.every or done == total:
+            self.last = now
+            log.info("%s: %d runs, step %d/%d (%.0f%%), %.1f s elapsed", self.label, self.n_runs, done, total,
+                     100.0 * done / total, now - self.start)
+
+
+def _job_info() -> tuple[Path, str, list[str]]:
+    from hydra.core.hydra_config import HydraConfig
+
+    hc = HydraConfig.get()
+    return Path(hc.runtime.output_dir), str(hc.mode), list(hc.overrides.task)
+
+
+def run_job(cfg: DictConfig) -> dict:
+    """Run one job and write its outputs; returns its summary."""
+    out, mode, overrides = _job_info()
+    digest = config_hash(cfg)
+    previous = io.read_summary(out)
+    if previous and previous.get("status") == "complete" and previous.get("config_hash") == digest:
+        log.info("skipped %s: complete results with the same config hash %s", out, digest)
+        return previous
+    started = time.perf_counter()
+    base = {"overrides": overrides, "config_hash": digest, "controller": None, "scenario": None}
+    try:
+        validate_config(cfg)
+        base["controller"], base["scenario"] = _names(cfg)
+        summary = execute(cfg, out, overrides, digest)
+    except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
+        error = f"{type(exc).__name__}: {exc}"
+        log.error("job failed: %s", error)
+        io.write_json(out / io.SUMMARY, {**base, "status": "failed", "error": error,
+                                         "traceback": traceback.format_exc(),
+                                         "wall_time": time.perf_counter() - started})
+        if "MULTIRUN" not in mode:
+            raise
+        return {**base, "status": "failed", "error": error}
+    return summary
+
+
+def _names(cfg: DictConfig) -> tuple[str, str]:
+    from .config.build import controller_name
+
+    return controller_name(cfg.controller), str(cfg.scenario.name)
+
+
+def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None) -> dict:
+    """Simulate the config's seeds and write every output file into ``out``; returns the summary."""
+
+    from .simulation import simulate
+
+    sim = build_simulation(cfg)
+    seeds = seeds_of(cfg)
+    label = f"{sim.controller.name}/{sim.scenario.name}"
+    progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
+    result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress)
+    io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
+    io.write_csv(out / io.METRICS_CSV, result.to_pandas())
+    io.write_csv(out / io.SEGMENTS_CSV, result.to_pandas(segments=True))
+    files = [io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV]
+    if result.series:
+        io.write_series(out / io.SERIES, result.series)
+        files.append(io.SERIES)
+        if cfg.run.plots:
+            from .plots import run_plots
+
+            seed = next(iter(result.series))
+            for path in run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR):
+                files.append(str(path.relative_to(out)))
+    summary = {
+        "status": "complete",
+        "controller": result.controller,
+        "scenario": result.scenario,
+        "overrides": overrides or [],
+        "config_hash": digest or config_hash(cfg),
+        "parameters": sim.controller.parameters(),
+        "seeds": [result.seeds[0], result.seeds[-1]],
+        "series_seeds": list(result.series),
+        "statistics": result.summary(),
+        "simulated_time": result.duration,
+        "dt": result.dt,
+        "wall_time": result.wall_time,
+        "files": files,
+        "python": platform.python_version(),
+    }
+    io.write_json(out / io.SUMMARY, summary)
+    stats = summary["statistics"]
+    log.info("%s: %d runs (%d diverged) in %.2f s", label, stats["runs"], stats["diverged"], result.wall_time)
+    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} +- {stats[m + '_sd']:.2g}" for m in HEADLINE[:4]))
+    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g}" for m in HEADLINE[4:]))
+    log.info("results: %s", out)
+    return summary
+
+
+__all__ = ["run_job", "execute"]

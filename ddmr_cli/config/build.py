@@ -1,0 +1,109 @@
+"""From a composed config to the plain model objects (the only place config meets model code)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from ..errors import ConfigError
+from ..outer_loop import Kanayama
+from ..robot import Robot
+from ..scenario import DampingUncertainty, Phase, Scenario
+from ..simulation import Simulation
+from ..terrain import Terrain, TerrainZone
+
+#: Only the project's own classes may be instantiated from a config.
+ALLOWED_TARGET_PREFIX = "ddmr_cli."
+
+#: Keys that do not change the numbers (left out of the config hash used to resume sweeps).
+NON_RESULT_KEYS = ("run.plots", "run.progress", "experiment_name", "cluster")
+
+
+def _check_targets(node: Any, path: str) -> None:
+    if isinstance(node, DictConfig):
+        target = node.get("_target_") if "_target_" in node else None
+        if target is not None and not str(target).startswith(ALLOWED_TARGET_PREFIX):
+            raise ConfigError(f"{path}._target_", target, f"only {ALLOWED_TARGET_PREFIX}* classes may be instantiated")
+        for key in node:
+            _check_targets(node[key], f"{path}.{key}")
+
+
+def instantiate_checked(node: DictConfig, path: str):
+    """``hydra.utils.instantiate`` restricted to the project's own classes."""
+    from hydra.utils import instantiate
+
+    _check_targets(node, path)
+    return instantiate(node, _convert_="all")
+
+
+def build_robot(cfg: DictConfig) -> Robot:
+    return Robot(**OmegaConf.to_container(cfg, resolve=True))
+
+
+def build_terrain(cfg: DictConfig) -> Terrain:
+    zones = sorted(((name, z) for name, z in cfg.zones.items()), key=lambda item: item[1].start)
+    return Terrain(zones=tuple(TerrainZone(str(name), float(z.start), float(z.roughness), float(z.mu))
+                               for name, z in zones), correlation_time=float(cfg.correlation_time))
+
+
+def build_scenario(cfg: DictConfig) -> Scenario:
+    phases = sorted(((name, p) for name, p in cfg.phases.items()), key=lambda item: item[1].start)
+    u = cfg.uncertainty
+    return Scenario(
+        name=str(cfg.name),
+        phases=tuple(Phase(str(name), float(p.start), bool(p.roughness), bool(p.uncertainty)) for name, p in phases),
+        uncertainty=DampingUncertainty(float(u.correlation_time), float(u.std), float(u.low), float(u.high)),
+    )
+
+
+def controller_name(cfg: DictConfig) -> str:
+    """The label of a controller config: its ``name`` or the last part of its target."""
+    return str(cfg.get("name") or str(cfg._target_).rsplit(".", 1)[-1].lower())
+
+
+def build_simulation(cfg: DictConfig) -> Simulation:
+    """The :class:`~ddmr_cli.simulation.Simulation` a composed (and validated) config describes."""
+    controller = instantiate_checked(cfg.controller, "controller")
+    sim_cfg = cfg.simulation
+    wheel = sim_cfg.initial_wheel_speeds
+    return Simulation(
+        controller=controller,
+        robot=build_robot(cfg.robot),
+        terrain=build_terrain(cfg.terrain),
+        scenario=build_scenario(cfg.scenario),
+        trajectory=instantiate_checked(cfg.trajectory, "trajectory"),
+        outer_loop=Kanayama(**OmegaConf.to_container(cfg.outer_loop, resolve=True)),
+        dt=float(sim_cfg.dt),
+        duration=float(sim_cfg.duration),
+        integrator=str(sim_cfg.integrator),
+        initial_pose=tuple(float(v) for v in sim_cfg.initial_pose),
+        initial_wheel_speeds=wheel if isinstance(wheel, str) else tuple(float(v) for v in wheel),
+        divergence_bound=float(sim_cfg.divergence_bound),
+    )
+
+
+def seeds_of(cfg: DictConfig) -> list[int]:
+    """The seeds of a job: ``base_seed .. base_seed + n_runs - 1``."""
+    return list(range(int(cfg.run.base_seed), int(cfg.run.base_seed) + int(cfg.run.n_runs)))
+
+
+def result_config(cfg: DictConfig) -> dict:
+    """The part of the resolved config that determines the numbers (no hydra node, no display keys)."""
+    container = OmegaConf.to_container(cfg, resolve=True)
+    container.pop("hydra", None)
+    for dotted in NON_RESULT_KEYS:
+        node, *rest = dotted.split(".")
+        if rest:
+            container.get(node, {}).pop(rest[0], None)
+        else:
+            container.pop(node, None)
+    return container
+
+
+def config_hash(cfg: DictConfig) -> str:
+    """SHA-256 of :func:`result_config`: equal hashes mean equal numbers."""
+    text = json.dumps(result_config(cfg), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -1,0 +1,214 @@
+"""Validation of every config value, before anything is run or written (issue: bad input).
+
+Each rule raises :class:`~ddmr_cli.errors.ConfigError` naming the key, the value and the rule, which the CLI
+prints as one line with exit status 2.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from ..errors import ConfigError
+from .build import _check_targets
+
+INTEGRATORS = ("euler", "rk4")
+SURFACES = ("proportional", "integral")
+SWITCHINGS = ("sign", "sat", "tanh")
+#: Largest stable dt * rate of a first-order mode under the step (explicit Euler: 2, RK4: 2.78)
+STABILITY_LIMIT = {"euler": 2.0, "rk4": 2.78}
+
+
+def _number(key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(key, value, "must be a number")
+    if not math.isfinite(value):
+        raise ConfigError(key, value, "must be finite")
+    return float(value)
+
+
+def positive(key: str, value: Any) -> float:
+    v = _number(key, value)
+    if v <= 0:
+        raise ConfigError(key, value, "must be > 0")
+    return v
+
+
+def non_negative(key: str, value: Any) -> float:
+    v = _number(key, value)
+    if v < 0:
+        raise ConfigError(key, value, "must be >= 0")
+    return v
+
+
+def finite(key: str, value: Any) -> float:
+    return _number(key, value)
+
+
+def per_wheel(key: str, value: Any, rule=non_negative) -> np.ndarray:
+    """A number or a [right, left] pair, each checked by ``rule``."""
+    if isinstance(value, (list, tuple, ListConfig)):
+        items = list(value)
+        if len(items) != 2:
+            raise ConfigError(key, OmegaConf.to_container(value) if isinstance(value, ListConfig) else value,
+                              "must be a number or a [right, left] pair")
+        return np.array([rule(f"{key}[{i}]", v) for i, v in enumerate(items)])
+    v = rule(key, value)
+    return np.array([v, v])
+
+
+def one_of(key: str, value: Any, options) -> str:
+    if value not in options:
+        raise ConfigError(key, value, f"must be one of {', '.join(options)}")
+    return value
+
+
+def integer(key: str, value: Any, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(key, value, "must be an integer")
+    if value < minimum:
+        raise ConfigError(key, value, f"must be >= {minimum}")
+    return value
+
+
+def _increasing_from_zero(key: str, items: DictConfig, what: str) -> None:
+    if len(items) == 0:
+        raise ConfigError(key, {}, f"needs at least one {what}")
+    previous = None
+    for name, item in items.items():
+        start = non_negative(f"{key}.{name}.start", item.start)
+        if previous is None and start != 0:
+            raise ConfigError(f"{key}.{name}.start", item.start, f"the first {what} must start at 0")
+        if previous is not None and start <= previous:
+            raise ConfigError(f"{key}.{name}.start", item.start,
+                              f"{what} starts must be increasing (previous one starts at {previous:g})")
+        previous = start
+
+
+def validate_robot(cfg: DictConfig) -> None:
+    for key in ("mass", "wheel_radius", "track_width", "yaw_inertia", "wheel_inertia", "torque_constant",
+                "back_emf_constant", "armature_resistance", "max_voltage"):
+        positive(f"robot.{key}", cfg[key])
+    non_negative("robot.viscous_friction", cfg.viscous_friction)
+
+
+def validate_terrain(cfg: DictConfig) -> None:
+    positive("terrain.correlation_time", cfg.correlation_time)
+    _increasing_from_zero("terrain.zones", cfg.zones, "zone")
+    for name, zone in cfg.zones.items():
+        non_negative(f"terrain.zones.{name}.roughness", zone.roughness)
+        non_negative(f"terrain.zones.{name}.mu", zone.mu)
+
+
+def validate_scenario(cfg: DictConfig) -> None:
+    _increasing_from_zero("scenario.phases", cfg.phases, "phase")
+    u = cfg.uncertainty
+    positive("scenario.uncertainty.correlation_time", u.correlation_time)
+    non_negative("scenario.uncertainty.std", u.std)
+    low, high = finite("scenario.uncertainty.low", u.low), finite("scenario.uncertainty.high", u.high)
+    if low <= -1.0:
+        raise ConfigError("scenario.uncertainty.low", u.low, "must be > -1 (the true damping must stay positive)")
+    if high <= low:
+        raise ConfigError("scenario.uncertainty.high", u.high, f"must be > scenario.uncertainty.low ({low:g})")
+
+
+def validate_controller(cfg: DictConfig) -> None:
+    target = str(cfg.get("_target_", ""))
+    kind = target.rsplit(".", 1)[-1]
+    if kind == "PID":
+        for key in ("kp", "ki", "kd"):
+            per_wheel(f"controller.{key}", cfg[key])
+    elif kind == "SMC":
+        per_wheel("controller.lam", cfg.lam, positive)
+        per_wheel("controller.switching_gain", cfg.switching_gain)
+        positive("controller.boundary_layer", cfg.boundary_layer)
+        one_of("controller.surface", cfg.surface, SURFACES)
+        one_of("controller.switching", cfg.switching, SWITCHINGS)
+        if cfg.get("ndo") is not None:
+            per_wheel("controller.ndo.gain", cfg.ndo.gain, positive)
+        if cfg.get("nn") is not None:
+            nn = cfg.nn
+            integer("controller.nn.n_neurons", nn.n_neurons, 1)
+            positive("controller.nn.width", nn.width)
+            per_wheel("controller.nn.learning_rate", nn.learning_rate, positive)
+            lo, hi = finite("controller.nn.center_min", nn.center_min), finite("controller.nn.center_max", nn.center_max)
+            if hi <= lo and nn.n_neurons > 1:
+                raise ConfigError("controller.nn.center_max", nn.center_max, f"must be > controller.nn.center_min ({lo:g})")
+    elif kind == "OpenLoop":
+        per_wheel("controller.voltage", cfg.voltage, finite)
+
+
+def validate_trajectory(cfg: DictConfig) -> None:
+    for key in ("speed", "heading", "x0", "y0"):
+        if key in cfg:
+            finite(f"trajectory.{key}", cfg[key])
+    for key in ("radius", "amplitude", "period"):
+        if key in cfg:
+            positive(f"trajectory.{key}", cfg[key])
+
+
+def validate_step(cfg: DictConfig) -> None:
+    """dt small enough for the integrator and the fastest loop (plant, observer, sliding surface, PID)."""
+    from ..robot import Robot
+    from .build import build_robot
+
+    sim = cfg.simulation
+    dt = positive("simulation.dt", sim.dt)
+    limit = STABILITY_LIMIT[sim.integrator]
+    robot: Robot = build_robot(cfg.robot)
+    b_max = 1.0 + (max(0.0, float(cfg.scenario.uncertainty.high)) if any(
+        p.uncertainty for p in cfg.scenario.phases.values()) else 0.0)
+    rates = {"the plant's fastest pole": float(np.max(np.linalg.eigvals(robot.drift_matrix).real)) * b_max}
+    ctrl = cfg.controller
+    kind = str(ctrl.get("_target_", "")).rsplit(".", 1)[-1]
+    g_max = float(np.max(np.linalg.eigvals(robot.input_matrix).real))
+    if kind == "SMC":
+        rates["controller.lam + switching_gain/boundary_layer"] = float(
+            np.max(per_wheel("controller.lam", ctrl.lam, positive))
+            + np.max(per_wheel("controller.switching_gain", ctrl.switching_gain)) / float(ctrl.boundary_layer))
+        if ctrl.get("ndo") is not None:
+            rates["controller.ndo.gain"] = float(np.max(per_wheel("controller.ndo.gain", ctrl.ndo.gain, positive)))
+    elif kind == "PID":
+        rates["controller.kp (times g)"] = float(np.max(per_wheel("controller.kp", ctrl.kp))) * g_max
+    for what, rate in rates.items():
+        if dt * rate >= limit:
+            raise ConfigError("simulation.dt", sim.dt,
+                              f"must be < {limit / rate:.3g} s for {sim.integrator} with {what} = {rate:.3g} 1/s")
+
+
+def validate_config(cfg: DictConfig) -> None:
+    """Check every value of a composed config; raise ConfigError on the first bad one."""
+    _check_targets(cfg.get("controller"), "controller")
+    _check_targets(cfg.get("trajectory"), "trajectory")
+    validate_robot(cfg.robot)
+    validate_terrain(cfg.terrain)
+    validate_scenario(cfg.scenario)
+    validate_controller(cfg.controller)
+    validate_trajectory(cfg.trajectory)
+    for key in ("k_x", "k_y", "k_theta"):
+        non_negative(f"outer_loop.{key}", cfg.outer_loop[key])
+    sim = cfg.simulation
+    one_of("simulation.integrator", sim.integrator, INTEGRATORS)
+    duration = positive("simulation.duration", sim.duration)
+    dt = positive("simulation.dt", sim.dt)
+    if dt > duration:
+        raise ConfigError("simulation.dt", sim.dt, f"must be <= simulation.duration ({duration:g})")
+    if len(sim.initial_pose) != 3:
+        raise ConfigError("simulation.initial_pose", OmegaConf.to_container(sim.initial_pose), "must be [x, y, theta]")
+    for i, v in enumerate(sim.initial_pose):
+        finite(f"simulation.initial_pose[{i}]", v)
+    wheel = sim.initial_wheel_speeds
+    if isinstance(wheel, str):
+        one_of("simulation.initial_wheel_speeds", wheel, ("reference", "rest"))
+    else:
+        per_wheel("simulation.initial_wheel_speeds", wheel, finite)
+    positive("simulation.divergence_bound", sim.divergence_bound)
+    validate_step(cfg)
+    run = cfg.run
+    integer("run.n_runs", run.n_runs, 1)
+    integer("run.base_seed", run.base_seed, 0)
+    for i, seed in enumerate(run.keep_series):
+        integer(f"run.keep_series[{i}]", seed, 0)

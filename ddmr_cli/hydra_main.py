@@ -1,0 +1,14 @@
+"""The ``@hydra.main`` entry behind ``ddmr run`` (configs from the installed package ``ddmr_cli.conf``)."""
+
+from __future__ import annotations
+
+import hydra
+from omegaconf import DictConfig
+
+from . import config  # noqa: F401  (registers the config schemas)
+from .app import run_job
+
+
+@hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")
+def main(cfg: DictConfig) -> None:
+    run_job(cfg)

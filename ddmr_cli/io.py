@@ -1,0 +1,94 @@
+"""Files a job writes, written atomically: each goes to a temporary name in the same directory and is renamed.
+
+A job's ``summary.json`` is written last and names ``status``; a directory without a complete summary
+holds no results the report would read, so a job killed at any moment leaves complete results or none.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+SUMMARY = "summary.json"
+METRICS_CSV = "metrics.csv"
+SEGMENTS_CSV = "segments.csv"
+SERIES = "series.npz"
+CONFIG = "config.yaml"
+PLOTS_DIR = "plots"
+
+
+def atomic_write(path: Path, write: Callable[[str], None]) -> Path:
+    """Call ``write(tmp_path)`` and rename the temporary file onto ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def write_text(path: Path, text: str) -> Path:
+    def _write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    return atomic_write(path, _write)
+
+
+def _json_default(obj: Any):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)
+
+
+def write_json(path: Path, data: Any) -> Path:
+    return write_text(path, json.dumps(data, indent=2, default=_json_default, allow_nan=True) + "\n")
+
+
+def write_csv(path: Path, frame) -> Path:
+    return atomic_write(path, lambda tmp: frame.to_csv(tmp, index=False))
+
+
+def write_series(path: Path, series: dict[int, dict[str, np.ndarray]]) -> Path:
+    """Time series of the kept seeds, compressed: key ``seed<k>/<channel>``."""
+    arrays = {f"seed{seed}/{name}": arr for seed, channels in series.items() for name, arr in channels.items()}
+
+    def _write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+
+    return atomic_write(path, _write)
+
+
+def read_series(path: Path) -> dict[int, dict[str, np.ndarray]]:
+    """Inverse of :func:`write_series`."""
+    out: dict[int, dict[str, np.ndarray]] = {}
+    with np.load(path) as data:
+        for key in data.files:
+            seed, name = key.split("/", 1)
+            out.setdefault(int(seed[4:]), {})[name] = data[key]
+    return out
+
+
+def read_summary(job_dir: Path) -> dict | None:
+    """A job's summary, or None when it has none (not run, or killed before it finished)."""
+    path = Path(job_dir) / SUMMARY
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
