@@ -29,7 +29,7 @@ commands:
                             ddmr run controller=pid scenario=paper_2 run.n_runs=10
                             ddmr run -m +experiment=table4            # Table 4: 4 controllers x 2 scenarios
                             ddmr run -m controller=smc,smc_ndo controller.switching_gain=4,8,12
-                            ddmr run -m +experiment=table4 +launcher=slurm cluster.partition=compute
+                            ddmr run -m +experiment=table4 launcher=slurm cluster.partition=compute
   report PATH [--out DIR] markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
   bench [--quick]         print engine and end-to-end performance figures for this machine
   --version               print the version
@@ -58,20 +58,12 @@ def _split_args(argv: Sequence[str]) -> tuple[list[str], dict[str, str | bool]]:
     return overrides, flags
 
 
-def _group_options(group: str) -> list[str]:
-    from hydra.core.global_hydra import GlobalHydra
-
-    from .config import compose_config
-
-    compose_config([])  # initialises Hydra with the packaged config module
-    loader = GlobalHydra.instance().config_loader()
-    return sorted(o for o in loader.get_group_options(group) if not o.startswith("schema"))
-
-
 def _explain(exc: BaseException, overrides: list[str]) -> str:
     """One line for a composition error: the key, the value and what is wrong."""
     from hydra.errors import MissingConfigException, OverrideParseException
     from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
+
+    from .config import group_options
 
     if isinstance(exc, OverrideParseException):
         return f"{exc.override}: cannot parse override ({str(exc.message).splitlines()[0]})" if hasattr(
@@ -79,7 +71,7 @@ def _explain(exc: BaseException, overrides: list[str]) -> str:
     for ov in overrides:
         key, sep, value = ov.lstrip("+~").partition("=")
         if sep and key in GROUPS:
-            options = _group_options(key)
+            options = group_options(key)
             for v in value.split(","):
                 if v and v not in options:
                     return f"{key}={v}: unknown {key}; available: {', '.join(options)}"

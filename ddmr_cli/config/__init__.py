@@ -22,6 +22,18 @@ def compose_config(overrides: Sequence[str] = (), config_name: str = "config", r
         return compose(config_name=config_name, overrides=list(overrides), return_hydra_config=return_hydra_config)
 
 
+def group_options(group: str) -> list[str]:
+    """The options of a config group (``controller`` -> ``pid, smc, ...``), schemas left out."""
+    from hydra import initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+        options = GlobalHydra.instance().config_loader().get_group_options(group)
+    return sorted(o for o in options if not o.startswith("schema"))
+
+
 def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     """Validate a composed config, build its simulation and run its seeds. Returns a SimulationResult."""
     from ..simulation import simulate
@@ -31,4 +43,4 @@ def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     return simulate(sim, seeds_of(cfg), keep_series=list(cfg.run.keep_series), progress=progress)
 
 
-__all__ = ["compose_config", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of"]
+__all__ = ["compose_config", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of"]

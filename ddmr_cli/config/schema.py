@@ -172,6 +172,8 @@ class DDMRConfig:
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
     run: RunConfig = field(default_factory=RunConfig)
     experiment_name: str = "run"
+    #: launcher settings set by conf/launcher presets (partition, time_min, cpus, mem_gb, ...)
+    cluster: Dict[str, Any] = field(default_factory=dict)
 
 
 def register_configs() -> None:

@@ -1,0 +1,116 @@
+"""Configs composed with Hydra's compose API: every controller x scenario, presets, schemas, hashing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_module
+from omegaconf import OmegaConf
+
+from ddmr_cli import PID, SMC, ConfigError, Robot, paper_scenario, paper_terrain
+from ddmr_cli.config import build_simulation, config_hash, group_options, validate_config
+from ddmr_cli.config.build import build_scenario, build_terrain
+
+CONTROLLERS = ["pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"]
+SCENARIOS = ["paper_1", "paper_2"]
+
+
+def _compose(overrides=(), return_hydra_config=False):
+    with initialize_config_module(config_module="ddmr_cli.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides), return_hydra_config=return_hydra_config)
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("scenario", SCENARIOS)
+def test_every_controller_and_scenario_composes_validates_and_builds(controller, scenario):
+    cfg = _compose([f"controller={controller}", f"scenario={scenario}"])
+    validate_config(cfg)
+    sim = build_simulation(cfg)
+    assert sim.controller.name == controller
+    assert sim.scenario.name == scenario
+    assert isinstance(sim.controller, PID if controller == "pid" else SMC)
+    if controller.startswith("smc"):
+        assert (sim.controller.ndo is not None) == ("ndo" in controller)
+        assert (sim.controller.nn is not None) == ("nno" in controller)
+
+
+def test_default_config_is_the_paper_scenario_1_with_smc_ndo_nno():
+    cfg = _compose()
+    assert cfg.controller.name == "smc_ndo_nno" and cfg.scenario.name == "paper_1"
+    assert cfg.run.n_runs == 50 and cfg.simulation.dt == 0.001 and cfg.simulation.duration == 15.0
+    assert list(cfg.simulation.initial_pose) == [0.0, 0.05, 0.05]
+
+
+def test_yaml_values_match_model_md_and_python_presets():
+    cfg = _compose(["scenario=paper_2"])
+    assert Robot(**OmegaConf.to_container(cfg.robot)) == Robot()
+    assert build_terrain(cfg.terrain) == paper_terrain()
+    assert build_scenario(cfg.scenario) == paper_scenario(2)
+    assert build_scenario(_compose().scenario) == paper_scenario(1)
+
+
+def test_both_readings_of_the_nn_parameters_ship_as_presets():
+    eq25 = _compose(["controller=smc_ndo_nno"]).controller.nn
+    text = _compose(["controller=smc_ndo_nno_text"]).controller.nn
+    assert (eq25.learning_rate, eq25.width) == (50.0, 2.0)
+    assert (text.learning_rate, text.width) == (2.0, 50.0)
+
+
+def test_group_options_hide_schemas():
+    assert set(CONTROLLERS) <= set(group_options("controller"))
+    assert not any(o.startswith("schema") for o in group_options("controller"))
+    assert group_options("scenario") == ["paper_1", "paper_2"]
+
+
+def test_experiment_presets_define_their_sweeps():
+    cfg = _compose(["+experiment=table4"], return_hydra_config=True)
+    assert dict(cfg.hydra.sweeper.params) == {"controller": "pid,smc,smc_ndo,smc_ndo_nno", "scenario": "paper_1,paper_2"}
+    smoke = _compose(["+experiment=smoke"], return_hydra_config=True)
+    assert smoke.run.n_runs == 2
+    assert set(smoke.hydra.sweeper.params.controller.split(",")) == set(CONTROLLERS)
+
+
+@pytest.mark.parametrize("launcher,target_part", [("local", "joblib"), ("submitit_local", "submitit"),
+                                                  ("slurm", "submitit")])
+def test_launcher_presets_compose(launcher, target_part):
+    cfg = _compose([f"launcher={launcher}"], return_hydra_config=True)
+    assert target_part in cfg.hydra.launcher._target_.lower()
+    if launcher == "slurm":
+        cfg = _compose(["launcher=slurm", "cluster.partition=compute", "cluster.time_min=30"], True)
+        assert cfg.hydra.launcher.partition == "compute" and cfg.hydra.launcher.timeout_min == 30
+
+
+def test_bad_values_are_refused_naming_the_key():
+    with pytest.raises(ConfigError, match=r"robot\.mass=-1\.0: must be > 0"):
+        validate_config(_compose(["robot.mass=-1"]))
+    with pytest.raises(ConfigError, match=r"terrain\.zones\.slightly_rough\.start=10\.0: zone starts must be increasing"):
+        validate_config(_compose(["terrain.zones.very_rough.start=12"]))
+    with pytest.raises(ConfigError, match=r"simulation\.dt"):
+        validate_config(_compose(["simulation.dt=0.05"]))
+
+
+def test_foreign_targets_are_refused():
+    with pytest.raises(ConfigError, match="only ddmr_cli"):
+        validate_config(_compose(["controller._target_=os.system"]))
+    with pytest.raises(ConfigError, match="only ddmr_cli"):
+        build_simulation(_compose(["controller.ndo._target_=subprocess.Popen"]))
+
+
+def test_config_hash_tracks_numbers_not_display_settings():
+    base = config_hash(_compose())
+    assert config_hash(_compose()) == base
+    assert config_hash(_compose(["run.plots=false", "run.progress=false"])) == base
+    assert config_hash(_compose(["controller.lam=24"])) != base
+    assert config_hash(_compose(["run.n_runs=49"])) != base
+
+
+def test_config_and_python_api_give_the_same_numbers():
+    from ddmr_cli import NonlinearDisturbanceObserver, Simulation, run_config, simulate
+
+    cfg = _compose(["controller=smc_ndo", "run.n_runs=2", "simulation.duration=0.3"])
+    from_config = run_config(cfg)
+    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0), name="smc_ndo"), terrain=paper_terrain(),
+                     scenario=paper_scenario(1), duration=0.3)
+    direct = simulate(sim, seeds=[0, 1], keep_series=[0])
+    for name, arr in direct.metrics.items():
+        assert np.array_equal(arr, from_config.metrics[name], equal_nan=True), name
