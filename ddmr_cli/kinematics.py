@@ -11,6 +11,8 @@ import numpy as np
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
     """Wrap an angle into (-pi, pi] (MODEL.md 2)."""
     wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
+    # np.mod can round up to exactly 2 pi (e.g. just above pi), which would give -pi: map it to pi
+    wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
     return wrapped if np.ndim(wrapped) else float(wrapped)
 
 

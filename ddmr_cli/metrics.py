@@ -48,6 +48,17 @@ METRICS: dict[str, tuple[str, str]] = {
 SEGMENT_METRICS = tuple(m for m in METRICS if m not in ("deviation_max", "deviation_final"))
 
 
+#: Sums over time are taken in blocks of this many steps, aligned to the run's first step, then added in
+#: order: the rounding is then the same whatever the batch size and chunk size (chunks are whole blocks).
+BLOCK_STEPS = 256
+
+#: Column layout of the per-step quantities: name -> (first column, width).
+_COLUMNS: dict[str, tuple[int, int]] = {}
+for _name in SUMS:
+    _COLUMNS[_name] = (sum(w for _, w in _COLUMNS.values()), 2 if _name in _PER_WHEEL else 1)
+N_COLUMNS = sum(w for _, w in _COLUMNS.values())
+
+
 @dataclass
 class StepSignals:
     """One chunk of per-step signals: time-major arrays, shape ``(steps, runs[, 2])``."""
@@ -90,7 +101,8 @@ class MetricAccumulator:
         self.segments = ["total"] + [f"zone:{z}" for z in self.zone_names] + [f"phase:{p}" for p in self.phase_names]
         self.k_e, self.r_a = back_emf_constant, armature_resistance
         n_seg = len(self.segments)
-        self.sums = {k: np.zeros((n_runs, n_seg, 2) if k in _PER_WHEEL else (n_runs, n_seg)) for k in SUMS}
+        self.n_zones, self.n_phases = len(self.zone_names), len(self.phase_names)
+        self.sums = np.zeros((n_runs, n_seg, N_COLUMNS))  # [run, segment, column]
         self.dev_max = np.zeros(n_runs)
         self.dev_final = np.full(n_runs, np.nan)
         self.u_prev: np.ndarray | None = None
@@ -124,7 +136,7 @@ class MetricAccumulator:
             "abs_ex": np.abs(sig.e_x),
             "abs_ey": np.abs(sig.e_y),
             "abs_eth": np.abs(sig.e_theta),
-            "saturated": np.any(u != sig.u_command, axis=-1).astype(float),
+            "saturated": np.any(u != sig.u_command, axis=-1),
             "abs_du": np.abs(du),
             "u2": u**2,
             "power": u * current,
@@ -135,24 +147,45 @@ class MetricAccumulator:
             "u_hp2": self._high_pass(u) ** 2,
             "abs_u": np.abs(u),
         }
-        n_zones = len(self.zone_names)
-        zone_masks = [sig.zone == z for z in range(n_zones)]
-        phase_slices = [np.flatnonzero(sig.phase == p) for p in range(len(self.phase_names))]
-        for key, q in quantities.items():
-            acc = self.sums[key]
-            acc[:, 0] += q.sum(axis=0)
-            for z, mask in enumerate(zone_masks):
-                m = mask if q.ndim == 2 else mask[:, :, None]
-                acc[:, 1 + z] += np.where(m, q, 0.0).sum(axis=0)
-            for p, rows in enumerate(phase_slices):
-                if rows.size:
-                    acc[:, 1 + n_zones + p] += q[rows].sum(axis=0)
+        n, n_runs = sig.dev.shape
+        q = np.empty((n, n_runs, N_COLUMNS))
+        for key, value in quantities.items():
+            start, width = _COLUMNS[key]
+            q[:, :, start:start + width] = value if width == 2 else value[:, :, None]
+        for start in range(0, n, BLOCK_STEPS):
+            block = slice(start, start + BLOCK_STEPS)
+            self._add_block(q[block], sig.zone[block], sig.phase[block])
         self.dev_max = np.fmax(self.dev_max, np.max(sig.dev, axis=0))
         self.dev_final = sig.dev[-1].copy()
 
+    def _add_block(self, q: np.ndarray, zone: np.ndarray, phase: np.ndarray) -> None:
+        """Add one block of steps to the whole-run, zone and phase sums.
+
+        Each run's block is summed along its own contiguous time axis (the same rounding in any batch). Zones
+        follow the distance travelled, which never decreases, so a run's zone changes at most a few times: a
+        block inside one zone adds its sum to that zone; the rare block that crosses an edge is split by mask.
+        """
+        runs = np.arange(q.shape[1])
+        qt = np.ascontiguousarray(np.moveaxis(q, 0, -1))  # (runs, columns, steps)
+        block_sum = qt.sum(axis=-1)
+        self.sums[:, 0] += block_sum
+        z_first, z_last = zone.min(axis=0), zone.max(axis=0)
+        inside = z_first == z_last
+        self.sums[runs[inside], 1 + z_first[inside]] += block_sum[inside]
+        for r in runs[~inside]:
+            for z in range(z_first[r], z_last[r] + 1):
+                self.sums[r, 1 + z] += (qt[r] * (zone[:, r] == z)).sum(axis=-1)
+        base = 1 + self.n_zones
+        if phase[0] == phase[-1]:
+            self.sums[:, base + phase[0]] += block_sum
+        else:
+            for p in np.unique(phase):
+                self.sums[:, base + p] += (qt * (phase == p)).sum(axis=-1)
+
     def finalize(self) -> dict[str, np.ndarray]:
         """Metrics per run and segment: ``{name: array (n_runs, n_segments)}`` (NaN where a segment is empty)."""
-        S, dt = self.sums, self.dt
+        S = {key: self.sums[:, :, a:a + w] if w == 2 else self.sums[:, :, a] for key, (a, w) in _COLUMNS.items()}
+        dt = self.dt
         with np.errstate(invalid="ignore", divide="ignore"):
             n = np.where(S["count"] > 0, S["count"], np.nan)
             nw = n[:, :, None]

@@ -16,6 +16,32 @@ GRAVITY = 9.81  # m/s^2
 
 
 @dataclass(frozen=True)
+class WheelMatrix:
+    """A 2x2 wheel-space matrix ``[[p, q], [q, p]]`` (the form of J, J^-1, J^-1 B, g for a symmetric robot).
+
+    Calling it on a batch of wheel vectors ``v`` (shape ``(n_runs, 2)``) returns ``(M v^T)^T`` computed
+    elementwise, ``p v + q v_swapped``: BLAS matrix products round differently for different batch sizes,
+    and a run must give bit-identical numbers alone or inside any batch.
+    """
+
+    p: float
+    q: float
+
+    @classmethod
+    def of(cls, m: np.ndarray) -> "WheelMatrix":
+        m = np.asarray(m, dtype=float)
+        if m.shape != (2, 2) or m[0, 0] != m[1, 1] or m[0, 1] != m[1, 0]:
+            raise ValueError(f"not a symmetric wheel matrix [[p, q], [q, p]]: {m.tolist()}")
+        return cls(float(m[0, 0]), float(m[0, 1]))
+
+    def __call__(self, v: np.ndarray) -> np.ndarray:
+        return self.p * v + self.q * v[:, ::-1]
+
+    def scaled(self, factor: float) -> "WheelMatrix":
+        return WheelMatrix(self.p * factor, self.q * factor)
+
+
+@dataclass(frozen=True)
 class Robot:
     """Physical parameters of a differential-drive robot (paper Table 2 plus motor constants).
 
@@ -126,14 +152,28 @@ class NominalModel:
         """g = J^-1 K_u (2x2)."""
         return np.linalg.inv(self.inertia) * self.voltage_gain
 
-    def f(self, w: np.ndarray) -> np.ndarray:
-        """f(w) = -J^-1 B w, for a batch ``w`` of shape (n, 2)."""
-        return -w @ self.drift.T
+    @cached_property
+    def inertia_over_gain(self) -> WheelMatrix:
+        """J / K_u, so that ``g^-1 a = (J / K_u) a``."""
+        return WheelMatrix.of(self.inertia / self.voltage_gain)
 
-    def g_times(self, u: np.ndarray) -> np.ndarray:
-        """g u for a batch ``u`` of shape (n, 2)."""
-        return u @ self.gain.T
+    @cached_property
+    def inverse_inertia(self) -> WheelMatrix:
+        """J^-1."""
+        return WheelMatrix.of(np.linalg.inv(self.inertia))
+
+    def f(self, w: np.ndarray) -> np.ndarray:
+        """f(w) = -J^-1 B w (the paper's (8)), for a batch ``w`` of shape (n, 2)."""
+        return -self.damping * self.inverse_inertia(w)
+
+    def f_plus_g_u(self, w: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The nominal acceleration ``f(w) + g u = J^-1 (K_u u - B w)`` (the paper's (8) without d)."""
+        return self.inverse_inertia(self.voltage_gain * u - self.damping * w)
 
     def g_inverse_times(self, a: np.ndarray) -> np.ndarray:
         """g^-1 a = J a / K_u for a batch ``a`` of shape (n, 2)."""
-        return a @ (self.inertia.T / self.voltage_gain)
+        return self.inertia_over_gain(a)
+
+    def voltage_for(self, a: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """``u = g^-1 (a - f(w)) = (J a + B w) / K_u``: the voltage that gives acceleration ``a`` at speed ``w``."""
+        return self.inertia_over_gain(a) + (self.damping / self.voltage_gain) * w

@@ -20,11 +20,11 @@ import numpy as np
 from .controllers.base import WheelController
 from .errors import ConfigError
 from .kinematics import wrap_angle
-from .metrics import MetricAccumulator, StepSignals
-from .noise import CHANNELS, OUStreams
+from .metrics import BLOCK_STEPS, MetricAccumulator, StepSignals
+from .noise import OUStreams
 from .outer_loop import Kanayama
 from .results import SERIES_CHANNELS, SimulationResult
-from .robot import NominalModel, Robot
+from .robot import NominalModel, Robot, WheelMatrix
 from .scenario import Scenario
 from .terrain import Terrain
 from .trajectory import StraightLine, Trajectory
@@ -33,6 +33,7 @@ INTEGRATORS = ("euler", "rk4")
 #: bytes of per-step signals buffered per run and step (chunked, so memory stays bounded)
 _BYTES_PER_RUN_STEP = 8 * 40
 CHUNK_BUDGET = 192 * 2**20
+MAX_CHUNK_STEPS = 4096
 
 
 @dataclass
@@ -120,23 +121,23 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     robot, dt, n_steps, n_runs = sim.robot, float(sim.dt), sim.n_steps, len(seeds)
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
 
-    # constants of the true plant and the kinematics
+    # constants of the true plant (MODEL.md 1) and the kinematics (MODEL.md 2)
     L, R = robot.half_track, robot.wheel_radius
-    A = robot.drift_matrix.T  # row-vector form: w @ A == (J^-1 B w)^T
-    G = robot.input_matrix.T
-    Jinv = robot.inverse_inertia.T
+    inv_inertia = WheelMatrix.of(robot.inverse_inertia)
+    damping, voltage_gain = robot.damping, robot.voltage_gain
     u_max = robot.max_voltage
-    roughness_table, mu_table = sim.terrain.roughness, sim.terrain.mu
-    roll_torque_table = robot.rolling_resistance_torque(mu_table)
-    unc = sim.scenario.uncertainty
-    phase_of_step = sim.scenario.phase_index(np.arange(n_steps) * dt)
-    phases = sim.scenario.phases
-    rough_on = np.array([p.roughness for p in phases], dtype=float)
-    unc_on = np.array([p.uncertainty for p in phases], dtype=bool)
-    ref = np.array([sim.trajectory.reference(k * dt) for k in range(n_steps)])  # (n_steps, 5)
-    kin = sim.outer_loop
-
+    terrain, scenario, kin = sim.terrain, sim.scenario, sim.outer_loop
+    roughness_table = terrain.roughness
+    roll_torque_table = robot.rolling_resistance_torque(terrain.mu)
+    single_zone = len(terrain.zones) == 1
+    unc = scenario.uncertainty
+    phase_of_step = scenario.phase_index(np.arange(n_steps) * dt)
+    rough_on = [float(p.roughness) for p in scenario.phases]
+    unc_on = [bool(p.uncertainty) for p in scenario.phases]
+    ref = [tuple(map(float, sim.trajectory.reference(k * dt))) for k in range(n_steps)]
     controller = sim.controller.bind(NominalModel.from_robot(robot), dt)
+    rk4 = sim.integrator == "rk4"
+    wheel_sign = np.array([1.0, -1.0])  # w_d = (v_d + [1, -1] L omega_d) / R
 
     # state
     x = np.full(n_runs, float(sim.initial_pose[0]))
@@ -147,100 +148,115 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     w_d_prev = None
     controller.reset(w.copy())
 
-    streams = OUStreams(seeds, dt, [sim.terrain.correlation_time] * 2 + [unc.correlation_time])
-    chunk = int(max(16, min(4096, CHUNK_BUDGET // (_BYTES_PER_RUN_STEP * n_runs))))
-    chunk = min(chunk, max(n_steps, 1))
-    acc = MetricAccumulator(n_runs, dt, sim.terrain.names, sim.scenario.names,
-                            robot.back_emf_constant, robot.armature_resistance)
+    streams = OUStreams(seeds, dt, [terrain.correlation_time] * 2 + [unc.correlation_time])
+    chunk = int(min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (_BYTES_PER_RUN_STEP * n_runs)))
+    chunk = max(BLOCK_STEPS, chunk // BLOCK_STEPS * BLOCK_STEPS)  # whole blocks: see metrics.BLOCK_STEPS
+    acc = MetricAccumulator(n_runs, dt, terrain.names, scenario.names, robot.back_emf_constant,
+                            robot.armature_resistance)
     diverged = np.zeros(n_runs, dtype=bool)
     divergence_time = np.full(n_runs, np.nan)
     series = {name: np.empty((len(keep_idx), n_steps)) for name in SERIES_CHANNELS} if keep_idx else {}
+    zone0 = np.zeros(n_runs, dtype=np.intp)
+    rough0, roll0 = roughness_table[zone0], roll_torque_table[zone0]
 
-    def rates(th_, w_, u_, b_scale_, d_ext_, roll_torque_):
-        """Plant (6)-(8) and kinematics (1)-(2): (x', y', th', w', distance')."""
-        v_ = R * 0.5 * (w_[:, 0] + w_[:, 1])
-        omega_ = (R / (2.0 * L)) * (w_[:, 0] - w_[:, 1])
-        drift = (w_ @ A) * b_scale_[:, None]
-        roll = (np.sign(w_) * roll_torque_[:, None]) @ Jinv  # J^-1 tau_roll, opposing rotation
-        w_dot_ = -drift + u_ @ G - roll + d_ext_
-        return v_ * np.cos(th_), v_ * np.sin(th_), omega_, w_dot_, np.abs(v_)
+    def disturbance(w_, b_scale_, d_ext_, roll_torque_):
+        """The lumped disturbance ``d = w' - f_nom(w) - g_nom u`` (MODEL.md 5) of the true plant (6)-(8):
+        ``d = -J^-1 (B_nom (b - 1) w + tau_roll) + d_ext``; rolling resistance opposes each wheel's rotation and
+        ``d_ext = -roughness n(t)`` is the roughness part."""
+        torque = np.sign(w_) * roll_torque_[:, None]
+        if b_scale_ is not None:
+            torque += (damping * (b_scale_ - 1.0))[:, None] * w_
+        return d_ext_ - inv_inertia(torque)
 
-    ones = np.ones(n_runs)
+    def wheel_acceleration(w_, u_, d_):
+        """The paper's (8): ``w' = J^-1 (K_u u - B_nom w) + d``."""
+        return inv_inertia(voltage_gain * u_ - damping * w_) + d_
+
+    def body_rates(w_):
+        """Forward kinematics (1): ``(v, omega)``."""
+        return R * 0.5 * (w_[:, 0] + w_[:, 1]), (R / (2.0 * L)) * (w_[:, 0] - w_[:, 1])
+
     with np.errstate(all="ignore"):
         k0 = 0
         while k0 < n_steps:
             n = min(chunk, n_steps - k0)
-            noise = streams.next_chunk(n)  # (n, runs, 3)
-            buf = {key: np.empty((n, n_runs)) for key in ("dev", "e_x", "e_y", "e_theta", "x", "y", "theta",
-                                                           "distance", "roughness", "damping_scale")}
-            buf.update({key: np.empty((n, n_runs, 2)) for key in ("u", "u_command", "w", "w_d", "s", "d_true",
-                                                                   "d_hat_ndo", "d_hat_nn")})
+            noise = streams.next_chunk(n)  # (n, runs, 3): roughness R, roughness L, uncertainty
+            roughness_noise = -noise[:, :, :2]
+            damping_scale = 1.0 + np.clip(unc.std * noise[:, :, 2], unc.low, unc.high)
+            rec = {key: np.empty((n, n_runs)) for key in _RECORD_1}
+            rec.update({key: np.empty((n, n_runs, 2)) for key in _RECORD_2})
+            if keep_idx:
+                rec.update({key: np.empty((n, n_runs)) for key in _SERIES_ONLY_1})
+                rec["w_d"] = np.empty((n, n_runs, 2))
             zone_buf = np.empty((n, n_runs), dtype=np.intp)
             for j in range(n):
                 k = k0 + j
                 x_r, y_r, th_r, v_r, omega_r = ref[k]
+                # measure: pose error in the robot frame (MODEL.md 2)
                 dx, dy = x_r - x, y_r - y
                 c, sn = np.cos(th), np.sin(th)
                 e_x = c * dx + sn * dy
                 e_y = c * dy - sn * dx
                 e_th = wrap_angle(th_r - th)
-                # outer loop (MODEL.md 3) and inverse kinematics (4)
+                # outer loop (MODEL.md 3) and inverse kinematics (4); w_d' by backward difference (MODEL.md 4)
                 v_d, omega_d = kin.command(e_x, e_y, e_th, v_r, omega_r)
-                w_d = np.empty((n_runs, 2))
-                w_d[:, 0] = (v_d + L * omega_d) / R
-                w_d[:, 1] = (v_d - L * omega_d) / R
-                w_d_dot = np.zeros_like(w_d) if w_d_prev is None else (w_d - w_d_prev) / dt
+                w_d = (v_d[:, None] + (L * omega_d)[:, None] * wheel_sign) * (1.0 / R)
+                w_d_dot = np.zeros_like(w_d) if w_d_prev is None else (w_d - w_d_prev) * (1.0 / dt)
                 w_d_prev = w_d
                 # wheel controller and saturation (MODEL.md 4)
                 u_cmd = controller.command(w, w_d, w_d_dot)
-                u = np.clip(u_cmd, -u_max, u_max)
-                # disturbances of this step (MODEL.md 5)
+                u = np.minimum(np.maximum(u_cmd, -u_max), u_max)
+                # disturbances of this step, held over it (MODEL.md 5)
                 p = phase_of_step[k]
-                zone = sim.terrain.zone_index(dist)
-                rough = roughness_table[zone] * rough_on[p]
-                roll_torque = roll_torque_table[zone]
-                d_ext = noise[j, :, :2] * (-rough)[:, None]
-                if unc_on[p]:
-                    b_scale = 1.0 + np.clip(unc.std * noise[j, :, 2], unc.low, unc.high)
+                if single_zone:
+                    zone, rough, roll_torque = zone0, rough0, roll0
                 else:
-                    b_scale = ones
-                k1 = rates(th, w, u, b_scale, d_ext, roll_torque)
-                # the lumped disturbance an observer should estimate: w' - f_nom(w) - g_nom u (MODEL.md 5)
-                d_true = k1[3] + w @ A - u @ G
+                    zone = terrain.zone_index(dist)
+                    rough, roll_torque = roughness_table[zone], roll_torque_table[zone]
+                if rough_on[p] != 1.0:
+                    rough = rough * rough_on[p]
+                d_ext = roughness_noise[j] * rough[:, None]
+                b_scale = damping_scale[j] if unc_on[p] else None
+                d_true = disturbance(w, b_scale, d_ext, roll_torque)
+                w_dot = wheel_acceleration(w, u, d_true)
                 controller.update(w, u, u_cmd)
                 # record
-                buf["dev"][j] = np.hypot(dx, dy)
-                buf["e_x"][j], buf["e_y"][j], buf["e_theta"][j] = e_x, e_y, e_th
-                buf["x"][j], buf["y"][j], buf["theta"][j], buf["distance"][j] = x, y, th, dist
-                buf["roughness"][j], buf["damping_scale"][j] = rough, b_scale
-                buf["u"][j], buf["u_command"][j], buf["w"][j], buf["w_d"][j] = u, u_cmd, w, w_d
-                buf["s"][j], buf["d_true"][j] = controller.s, d_true
-                buf["d_hat_ndo"][j], buf["d_hat_nn"][j] = controller.d_hat_ndo, controller.d_hat_nn
+                rec["dev"][j] = np.hypot(dx, dy)
+                rec["e_x"][j], rec["e_y"][j], rec["e_theta"][j] = e_x, e_y, e_th
+                rec["u"][j], rec["u_command"][j], rec["w"][j] = u, u_cmd, w
+                rec["s"][j], rec["d_true"][j] = controller.s, d_true
+                rec["d_hat_ndo"][j], rec["d_hat_nn"][j] = controller.d_hat_ndo, controller.d_hat_nn
                 zone_buf[j] = zone
-                # advance plant and pose
-                if sim.integrator == "euler":
-                    xd, yd, thd, wd, sd = k1
+                if keep_idx:
+                    rec["x"][j], rec["y"][j], rec["theta"][j], rec["distance"][j] = x, y, th, dist
+                    rec["roughness"][j], rec["w_d"][j] = rough, w_d
+                    rec["damping_scale"][j] = 1.0 if b_scale is None else b_scale
+                # advance plant and pose (MODEL.md 4)
+                v, omega = body_rates(w)
+                if not rk4:  # explicit Euler
+                    x = x + dt * (v * c)
+                    y = y + dt * (v * sn)
+                    th = th + dt * omega
+                    dist = dist + dt * np.abs(v)
+                    w = w + dt * w_dot
                 else:
-                    h = 0.5 * dt
-                    k2 = rates(th + h * k1[2], w + h * k1[3], u, b_scale, d_ext, roll_torque)
-                    k3 = rates(th + h * k2[2], w + h * k2[3], u, b_scale, d_ext, roll_torque)
-                    k4 = rates(th + dt * k3[2], w + dt * k3[3], u, b_scale, d_ext, roll_torque)
-                    xd, yd, thd, wd, sd = ((a + 2.0 * b + 2.0 * cc + e) / 6.0 for a, b, cc, e in zip(k1, k2, k3, k4))
-                x, y, th, w, dist = x + dt * xd, y + dt * yd, th + dt * thd, w + dt * wd, dist + dt * sd
+                    x, y, th, dist, w = _rk4_step(
+                        x, y, th, dist, w, v, omega, w_dot, dt, body_rates,
+                        lambda w_: wheel_acceleration(w_, u, disturbance(w_, b_scale, d_ext, roll_torque)))
             t = (k0 + np.arange(n)) * dt
             # divergence: first step of each run whose deviation is over the bound or not finite
-            bad = ~(buf["dev"] <= sim.divergence_bound)
+            bad = ~(rec["dev"] <= sim.divergence_bound)
             newly = bad.any(axis=0) & ~diverged
             if newly.any():
                 first = np.argmax(bad, axis=0)
                 divergence_time[newly] = t[first[newly]]
                 diverged |= newly
-            acc.consume(StepSignals(t=t, dev=buf["dev"], e_x=buf["e_x"], e_y=buf["e_y"], e_theta=buf["e_theta"],
-                                    u=buf["u"], u_command=buf["u_command"], w=buf["w"], s=buf["s"],
-                                    d_true=buf["d_true"], d_hat_ndo=buf["d_hat_ndo"], d_hat_nn=buf["d_hat_nn"],
+            acc.consume(StepSignals(t=t, dev=rec["dev"], e_x=rec["e_x"], e_y=rec["e_y"], e_theta=rec["e_theta"],
+                                    u=rec["u"], u_command=rec["u_command"], w=rec["w"], s=rec["s"],
+                                    d_true=rec["d_true"], d_hat_ndo=rec["d_hat_ndo"], d_hat_nn=rec["d_hat_nn"],
                                     zone=zone_buf, phase=phase_of_step[k0:k0 + n]))
             if keep_idx:
-                _record_series(series, buf, zone_buf, ref[k0:k0 + n], t, keep_idx, k0)
+                _record_series(series, rec, zone_buf, ref[k0:k0 + n], t, keep_idx, k0)
             k0 += n
             if progress is not None:
                 progress(k0, n_steps)
@@ -250,22 +266,47 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
         arr[diverged] = np.nan
     return SimulationResult(
         seeds=seeds, controller=getattr(sim.controller, "name", type(sim.controller).__name__),
-        scenario=sim.scenario.name, segments=acc.segments, metrics=metrics, diverged=diverged,
+        scenario=scenario.name, segments=acc.segments, metrics=metrics, diverged=diverged,
         divergence_time=divergence_time, series={seeds[i]: {k: v[n_i] for k, v in series.items()}
                                                  for n_i, i in enumerate(keep_idx)},
         dt=dt, duration=n_steps * dt, wall_time=time.perf_counter() - started,
     )
 
 
-def _record_series(series, buf, zone_buf, ref, t, keep_idx, k0):
+_RECORD_1 = ("dev", "e_x", "e_y", "e_theta")
+_RECORD_2 = ("u", "u_command", "w", "s", "d_true", "d_hat_ndo", "d_hat_nn")
+_SERIES_ONLY_1 = ("x", "y", "theta", "distance", "roughness", "damping_scale")
+
+
+def _rk4_step(x, y, th, dist, w, v1, om1, a1, dt, body_rates, accel):
+    """Classic RK4 over one step for pose, distance and wheel speeds, with ``u`` and disturbances held."""
+    h = 0.5 * dt
+    th2, w2 = th + h * om1, w + h * a1
+    v2, om2 = body_rates(w2)
+    a2 = accel(w2)
+    th3, w3 = th + h * om2, w + h * a2
+    v3, om3 = body_rates(w3)
+    a3 = accel(w3)
+    th4, w4 = th + dt * om3, w + dt * a3
+    v4, om4 = body_rates(w4)
+    a4 = accel(w4)
+    sixth = dt / 6.0
+    x = x + sixth * (v1 * np.cos(th) + 2.0 * v2 * np.cos(th2) + 2.0 * v3 * np.cos(th3) + v4 * np.cos(th4))
+    y = y + sixth * (v1 * np.sin(th) + 2.0 * v2 * np.sin(th2) + 2.0 * v3 * np.sin(th3) + v4 * np.sin(th4))
+    dist = dist + sixth * (np.abs(v1) + 2.0 * np.abs(v2) + 2.0 * np.abs(v3) + np.abs(v4))
+    return x, y, th + sixth * (om1 + 2.0 * om2 + 2.0 * om3 + om4), dist, w + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+
+
+def _record_series(series, rec, zone_buf, ref, t, keep_idx, k0):
     n = len(t)
     sl = slice(k0, k0 + n)
+    ref = np.asarray(ref)
     series["t"][:, sl] = t
     for name, col in (("x_ref", 0), ("y_ref", 1), ("theta_ref", 2)):
         series[name][:, sl] = ref[:, col]
     for name in ("x", "y", "theta", "e_x", "e_y", "e_theta", "dev", "distance", "roughness", "damping_scale"):
-        series["deviation" if name == "dev" else name][:, sl] = buf[name][:, keep_idx].T
+        series["deviation" if name == "dev" else name][:, sl] = rec[name][:, keep_idx].T
     for name in ("w", "w_d", "u", "s", "d_true", "d_hat_ndo", "d_hat_nn"):
         for wheel, suffix in ((0, "right"), (1, "left")):
-            series[f"{name}_{suffix}"][:, sl] = buf[name][:, keep_idx, wheel].T
+            series[f"{name}_{suffix}"][:, sl] = rec[name][:, keep_idx, wheel].T
     series["zone"][:, sl] = zone_buf[:, keep_idx].T

@@ -27,7 +27,7 @@ def _sign(x: np.ndarray) -> np.ndarray:
 
 
 def _sat(x: np.ndarray) -> np.ndarray:
-    return np.clip(x, -1.0, 1.0)
+    return np.minimum(np.maximum(x, -1.0), 1.0)
 
 
 SWITCHING_FUNCTIONS: dict[str, SwitchingFunction] = {"sign": _sign, "sat": _sat, "tanh": np.tanh}

@@ -30,6 +30,7 @@ class NonlinearDisturbanceObserver:
 
     def bind(self, model: NominalModel, dt: float) -> None:
         self.model, self.dt = model, dt
+        self.dt_gain = dt * self.gain
 
     def reset(self, w0: np.ndarray) -> None:
         self.z = -self.gain * w0
@@ -39,8 +40,7 @@ class NonlinearDisturbanceObserver:
         return self.d_hat
 
     def update(self, w: np.ndarray, u_applied: np.ndarray, s: np.ndarray) -> None:
-        m = self.model
-        self.z = self.z - self.dt * self.gain * (self.d_hat + m.f(w) + m.g_times(u_applied))
+        self.z = self.z - self.dt_gain * (self.d_hat + self.model.f_plus_g_u(w, u_applied))
 
     def parameters(self) -> dict[str, object]:
         return {"L": compact(self.gain)}
@@ -50,7 +50,7 @@ class RBFNetworkObserver:
     """RBF neural-network observer, the paper's (24)-(27) with the update law (25) (MODEL.md 6).
 
     ``d_hat_NN = W^T Phi(x)`` with ``x = w``, ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))``, centres
-    ``c_j = (c, c)`` evenly spaced on ``[center_min, center_max]``, ``W`` (n x 2 per run) starting at 0 and
+    ``c_j = (c, c)`` evenly spaced on ``[center_min, center_max]``, ``W`` (n x 2 per run, stored transposed) starting at 0 and
     adapting by ``W' = -gamma Phi(x) s^T`` (25), the sign that makes (28)'s ``V' <= 0`` for ``s = w_d - w``
     with ``d_hat`` subtracted in (17).
 
@@ -77,7 +77,8 @@ class RBFNetworkObserver:
         self.model, self.dt = model, dt
 
     def reset(self, w0: np.ndarray) -> None:
-        self.weights = np.zeros((w0.shape[0], self.n_neurons, 2))
+        # W^T, one row of n weights per wheel: shape (n_runs, 2, n)
+        self.weights = np.zeros((w0.shape[0], 2, self.n_neurons))
 
     def basis(self, w: np.ndarray) -> np.ndarray:
         """Phi(x) of (27) for a batch: shape ``(n_runs, n_neurons)``."""
@@ -85,13 +86,15 @@ class RBFNetworkObserver:
         return np.exp(dist2 * (-0.5 / self.width**2))
 
     def estimate(self, w: np.ndarray) -> np.ndarray:
-        self.phi = self.basis(w)
-        self.d_hat = np.einsum("rj,rjk->rk", self.phi, self.weights)
+        """``d_hat_NN = W^T Phi(x)`` (24), summed along the contiguous neuron axis (batch-invariant rounding)."""
+        self.phi = self.basis(w)[:, None, :]
+        self.d_hat = (self.weights * self.phi).sum(axis=-1)
         return self.d_hat
 
     def update(self, w: np.ndarray, u_applied: np.ndarray, s: np.ndarray) -> None:
+        """One Euler step of (25): ``W' = -gamma Phi(x) s^T``."""
         step = (self.dt * self.learning_rate) * s
-        self.weights = self.weights - self.phi[:, :, None] * step[:, None, :]
+        self.weights = self.weights - step[:, :, None] * self.phi
 
     def parameters(self) -> dict[str, object]:
         return {"n": self.n_neurons, "sigma": self.width, "gamma": compact(self.learning_rate),

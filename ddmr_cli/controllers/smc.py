@@ -83,14 +83,18 @@ class SMC(WheelController):
             s = e
             linear = self.lam * s
         self.s = s
+        d_hat = None
         if self.ndo is not None:
-            self.d_hat_ndo = self.ndo.estimate(w)
+            self.d_hat_ndo = d_hat = self.ndo.estimate(w)
         if self.nn is not None:
             self.d_hat_nn = self.nn.estimate(w)
-        d_hat = self.d_hat_ndo + self.d_hat_nn
+            d_hat = self.d_hat_nn if d_hat is None else d_hat + self.d_hat_nn
         x = s if self.switching == "sign" else s * (1.0 / self.boundary_layer)
-        a = w_d_dot - self.model.f(w) + linear + self.switching_gain * self._sw(x) - d_hat
-        return self.model.g_inverse_times(a)
+        # (17): u = g^-1 (w_d' - f(w) + lambda s + K sw(s/Phi) - d_hat)
+        a = w_d_dot + linear + self.switching_gain * self._sw(x)
+        if d_hat is not None:
+            a = a - d_hat
+        return self.model.voltage_for(a, w)
 
     def update(self, w, u_applied, u_command):
         if self.surface == "integral":

@@ -1,7 +1,28 @@
-"""``ddmr report``: the paper's tables and figures from a sweep (being built)."""
+"""``ddmr report``: the paper's tables and figures from a sweep (or a single run dir), beside its numbers.
+
+Writes ``report.md``, ``tables/*.csv`` and ``figures/*.png`` under the output dir (default ``PATH/report``):
+Table 3 (parameters), Table 4 (tracking statistics, with the paper's numbers and the ratio ours/paper),
+verdicts on the paper's claims (paired by seed: bootstrap CI and Wilcoxon test), chattering, energy,
+saturation, disturbance estimation, per-zone and per-phase tables, and the paper's figures per scenario.
+pandas and matplotlib are imported only when a report is built.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
 
 
-def build_report(path, out=None):
-    from ..errors import DDMRError
+def build_report(path, out=None) -> Path:
+    """Build the report of a sweep dir or a run dir; returns the output dir.
 
-    raise DDMRError("ddmr report is not implemented yet")
+    Raises
+    ------
+    ddmr_cli.errors.DDMRError
+        ``path`` is not a dir, holds no job, or no job completed.
+    """
+    from .build import build
+
+    return build(path, out)
+
+
+__all__ = ["build_report"]

@@ -1,0 +1,337 @@
+"""Assemble ``report.md``, ``tables/*.csv`` and ``figures/*.png`` for a sweep or run dir."""
+
+from __future__ import annotations
+
+import math
+import shlex
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import io
+from ..metrics import METRICS
+from . import tables as T
+from . import verdicts as V
+from .data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
+from .figures import common_seed, make_figures
+
+#: Settings shown in the configuration section (dotted config keys).
+KEY_SETTINGS = ("simulation.dt", "simulation.duration", "simulation.integrator", "simulation.initial_pose",
+                "simulation.divergence_bound", "run.n_runs", "run.base_seed", "run.keep_series", "terrain.name",
+                "terrain.correlation_time", "trajectory._target_", "trajectory.speed", "outer_loop.k_x",
+                "outer_loop.k_y", "outer_loop.k_theta", "robot.max_voltage")
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_fmt_value(x) for x in v) + "]"
+    return str(v)
+
+
+def _params(params: dict) -> str:
+    return "; ".join(f"{k} = {_fmt_value(v)}" for k, v in params.items())
+
+
+def nn_reading(params: dict) -> str | None:
+    if "gamma" not in params or "sigma" not in params:
+        return None
+    gamma, sigma = float(params["gamma"]), float(params["sigma"])
+    if (gamma, sigma) == (50.0, 2.0):
+        return "Table 3 / eq. (25) reading: learning rate γ = 50, RBF width σ = 2"
+    if (gamma, sigma) == (2.0, 50.0):
+        return "text reading: learning rate 2, RBF width 50"
+    return f"custom: learning rate γ = {gamma:g}, RBF width σ = {sigma:g}"
+
+
+class Report:
+    def __init__(self, data: ReportData, out: Path):
+        self.data, self.out = data, out
+        self.tables_dir, self.figures_dir = out / "tables", out / "figures"
+        self.md: list[str] = []
+        self.csvs: list[tuple[str, Path]] = []
+
+    # --- helpers -----------------------------------------------------------------------------------------
+    def csv(self, name: str, frame, what: str) -> str:
+        path = io.write_csv(self.tables_dir / name, frame)
+        self.csvs.append((what, path))
+        return self.link(path)
+
+    def link(self, path: Path) -> str:
+        rel = Path(path).relative_to(self.out).as_posix()
+        return f"[{rel}]({rel})"
+
+    def add(self, *lines: str) -> None:
+        self.md.extend(lines)
+
+    # --- sections ----------------------------------------------------------------------------------------
+    def header(self) -> None:
+        from .. import __version__
+
+        d = self.data
+        kind = "run dir" if d.single_run else "sweep dir"
+        self.add(f"# ddmr report: {d.path.name}", "",
+                 f"From the {kind} `{d.path}` by ddmr {__version__}: {len(d.jobs)} complete job(s), "
+                 f"{len(d.failed)} failed, {len(d.missing)} missing. Paper: *SMC integrated with NDO and RBF "
+                 f"neural network for trajectory tracking of DDMRs considering terrain factor*; its numbers are "
+                 f"shipped in `ddmr_cli/data/paper_numbers.json` (MODEL.md section 8).", "")
+
+    def configuration(self) -> None:
+        d = self.data
+        report_cmd = f"ddmr report {shlex.quote(str(d.path))}"
+        if self.out != d.path / "report":
+            report_cmd += f" --out {shlex.quote(str(self.out))}"
+        self.add("## Configuration", "", "Regenerate the results (jobs already complete with the same config hash are "
+                 "skipped) and this report:", "", "```sh", d.run_command(), report_cmd, "```", "")
+        flat = {j.dir.name: flatten(j.config) for j in d.jobs}
+        rows = []
+        for key in KEY_SETTINGS:
+            values = list(dict.fromkeys(_fmt_value(f.get(key)) for f in flat.values() if key in f))
+            if values:
+                rows.append([key, ", ".join(values) + (" (varies between jobs)" if len(values) > 1 else "")])
+        seeds = list(dict.fromkeys(f"{j.summary['seeds'][0]}–{j.summary['seeds'][-1]}" for j in d.jobs
+                                   if j.summary.get("seeds")))
+        if seeds:
+            rows.append(["seeds", ", ".join(seeds)])
+        readings = list(dict.fromkeys(f"{j.controller}: {r}" for j in d.jobs
+                                      if (r := nn_reading(j.summary.get("parameters") or {}))))
+        rows.append(["NN-parameter reading (MODEL.md 6)", "; ".join(readings) if readings else "no NN observer"])
+        self.add(T.md_table(["Setting", "Value"], rows), "")
+        all_keys = set().union(*flat.values()) if flat else set()
+        differ = sorted(k for k in all_keys if not k.startswith(("controller.", "scenario."))
+                        and len({_fmt_value(f.get(k)) for f in flat.values()}) > 1)
+        if differ:
+            self.add("Settings that differ between jobs besides controller and scenario: "
+                     + ", ".join(f"`{k}`" for k in differ) + ".", "")
+        self.add("Jobs (the overrides each was run with):", "")
+        jrows = []
+        for j in sorted(d.jobs, key=lambda j: (d.scenarios.index(j.scenario), d.keys().index(j.key))):
+            st = j.summary.get("statistics") or {}
+            jrows.append([f"`{j.dir.name}`", j.label, j.scenario, st.get("runs", "–"), st.get("diverged", "–"),
+                          " ".join(f"`{o}`" for o in j.overrides), T.fmt(j.summary.get("wall_time"), 3)])
+        self.add(T.md_table(["Job", "Controller", "Scenario", "Runs", "Diverged", "Overrides", "Wall time (s)"],
+                            jrows), "")
+
+    def status(self) -> None:
+        import pandas as pd
+
+        d = self.data
+        rows = [{"job": j.dir.name, "status": "complete", "controller": j.controller, "scenario": j.scenario,
+                 "overrides": " ".join(j.overrides), "error": ""} for j in d.jobs]
+        rows += [{"job": p.name, "status": s.get("status", "failed"), "controller": s.get("controller"),
+                  "scenario": s.get("scenario"), "overrides": " ".join(map(str, s.get("overrides") or [])),
+                  "error": s.get("error", "")} for p, s in d.failed]
+        rows += [{"job": m["dir"], "status": "missing", "controller": "", "scenario": "",
+                  "overrides": " ".join(map(str, m.get("overrides") or [])), "error": "no summary.json (not run, "
+                  "or killed before it finished)"} for m in d.missing]
+        link = self.csv("jobs.csv", pd.DataFrame(rows), "every job and its status")
+        self.add("## Missing or failed jobs", "")
+        if not d.failed and not d.missing:
+            self.add(f"None: every job of the {'run' if d.single_run else 'sweep'} is complete ({link}).", "")
+            return
+        self.add(f"**The report is partial**: {len(d.failed)} failed and {len(d.missing)} missing job(s); tables, "
+                 f"verdicts and figures cover the complete jobs only ({link}).", "")
+        self.add(T.md_table(["Job", "Status", "Overrides", "Error"],
+                            [[f"`{r['job']}`", r["status"], r["overrides"], r["error"]] for r in rows
+                             if r["status"] != "complete"]), "")
+
+    def table3(self) -> None:
+        import pandas as pd
+
+        d = self.data
+        paper = paper_numbers()["table3"]
+        rows, seen = [], {}
+        for key in d.keys():
+            for j in d.jobs:
+                if j.key != key:
+                    continue
+                params = j.summary.get("parameters") or {}
+                sig = _params(params)
+                if (key, sig) in seen:
+                    seen[(key, sig)]["scenarios"].append(j.scenario)
+                    continue
+                row = {"controller": j.controller, "key": key, "label": j.label, "scenarios": [j.scenario],
+                       **{f"param_{k}": v for k, v in params.items()}, "parameters": sig,
+                       "paper_table3": paper["by_controller"].get(j.controller, "")}
+                seen[(key, sig)] = row
+                rows.append(row)
+        for r in rows:
+            r["scenarios"] = ",".join(r["scenarios"])
+        link = self.csv("table3_parameters.csv", pd.DataFrame(rows), "Table 3: controller parameters")
+        self.add("## Table 3: controller parameters", "",
+                 f"From the jobs' summaries (the parameters each controller actually ran with), beside the paper's "
+                 f"Table 3 ({link}). Symbols: MODEL.md 6 (λ reaching-law gain, K switching gain, Φ boundary layer, "
+                 f"L NDO gain, n neurons, σ RBF width, γ learning rate).", "")
+        self.add(T.md_table(["Controller", "Scenarios", "Ours", "Paper Table 3"],
+                            [[r["label"], r["scenarios"], r["parameters"], r["paper_table3"] or "–"] for r in rows]),
+                 "", f"Note: {paper['note']}", "")
+
+    def table4(self, stats) -> None:
+        d = self.data
+        t4 = T.table4_frame(stats)
+        link = self.csv("table4.csv", t4, "Table 4: tracking statistics with the paper's numbers")
+        self.add("## Table 4: tracking performance over seeds", "",
+                 f"Per scenario and controller, over the seeds that did not diverge: mean deviation (the mean over "
+                 f"the run of the distance to the reference point, MAE), its SD across seeds, and the MAE of e_x, "
+                 f"e_y, e_θ; runs and diverged runs counted ({link}). "
+                 f"**The paper's Table 4 does not say which scenario it reports; it is compared against scenario 1 "
+                 f"(`{PAPER_SCENARIO}`) only**: each of our numbers is followed by the paper's and the ratio "
+                 f"ours/paper. Names map pid → PID, smc → SMC, smc_ndo → SMC+NDO, smc_ndo_nno → SMC-NDO-NN; "
+                 f"**smc_ndo_nno_text (the other reading of the NN parameters, MODEL.md 6) is compared to the same "
+                 f"SMC-NDO-NN row**. The paper prints e_θ in m; it is rad.", "")
+        if PAPER_SCENARIO not in d.scenarios:
+            self.add(f"(No `{PAPER_SCENARIO}` job in this sweep: no comparison with the paper's numbers.)", "")
+        for scenario in d.scenarios:
+            self.add(f"### {scenario}" + (" (compared with the paper's Table 4)" if scenario == PAPER_SCENARIO
+                                           else ""), "", T.md_table4(t4, scenario), "")
+        self.add(f"The paper's Table 4 ({paper_numbers()['table4']['runs']} runs), for reference:", "")
+        paper = paper_numbers()["table4"]["rows"]
+        self.add(T.md_table(["Paper row"] + [h for *_, h in T.TABLE4_COLUMNS],
+                            [[name] + [T.fmt(v[c]) for _, _, c, _ in T.TABLE4_COLUMNS] for name, v in paper.items()]),
+                 "")
+
+    def verdicts(self) -> None:
+        import pandas as pd
+
+        results = V.evaluate(self.data)
+        link = self.csv("verdicts.csv", pd.DataFrame(V.rows(results)), "paired comparisons behind the verdicts")
+        self.add(V.markdown(self.data, results), f"Every paired comparison: {link}.", "")
+
+    def voltage_ranges(self, stats):
+        """1st–99th percentile of u_R for t >= 1 s in the figures' seed, per scenario and controller."""
+        lo, hi, seeds = [], [], []
+        for _, r in stats.iterrows():
+            jobs = [self.data.job(r["scenario"], k) for k in self.data.keys(r["scenario"])]
+            seed = common_seed(jobs)
+            if seed is None:
+                lo.append(math.nan), hi.append(math.nan), seeds.append(math.nan)
+                continue
+            s = self.data.series(self.data.job(r["scenario"], r["key"]), seed)
+            u = s["u_right"][s["t"] >= 1.0]
+            p = np.nanpercentile(u, [1, 99]) if u.size else (math.nan, math.nan)
+            lo.append(float(p[0])), hi.append(float(p[1])), seeds.append(seed)
+        return lo, hi, seeds
+
+    def effort(self, stats) -> None:
+        d = self.data
+        ch = T.select(stats, ["chattering", "chattering_right", "chattering_left", "hf_fraction", "mean_voltage"])
+        ch["u_right_p01"], ch["u_right_p99"], ch["series_seed"] = self.voltage_ranges(stats)
+        link = self.csv("chattering.csv", ch, "chattering and voltage range")
+        fig13 = paper_numbers()["figure13_voltage_range_V"]
+        self.add("## Chattering", "",
+                 f"Total variation of the applied voltage per second (V/s, mean of both wheels), the fraction of "
+                 f"var(u) above 10 Hz, the mean |u|, and the range of u_R (1st–99th percentile for t ≥ 1 s, in the "
+                 f"seed of the figures) ({link}). Paper Fig. 13 (scenario 2): SMC-NDO about "
+                 f"{fig13['smc_ndo'][0]:g}–{fig13['smc_ndo'][1]:g} V, SMC-NDO-NNO about "
+                 f"{fig13['smc_ndo_nno'][0]:g}–{fig13['smc_ndo_nno'][1]:g} V.", "")
+        for scenario in d.scenarios:
+            self.add(f"### {scenario}", "", T.md_metric_table(
+                ch, scenario, [("chattering", "Chattering (V/s)"), ("hf_fraction", "HF fraction (>10 Hz)"),
+                               ("mean_voltage", "Mean |u| (V)")],
+                [("u_R range (V)", lambda r: f"{T.fmt(r['u_right_p01'], 3)} – {T.fmt(r['u_right_p99'], 3)}")]), "")
+        en = T.select(stats, ["energy_u2", "electrical_energy", "mean_voltage"])
+        link = self.csv("energy.csv", en, "energy")
+        self.add("## Energy", "", f"∫(u_R² + u_L²) dt and the electrical energy ∫ u·i dt over both motors, per run "
+                 f"({link}).", "")
+        for scenario in d.scenarios:
+            self.add(f"### {scenario}", "", T.md_metric_table(
+                en, scenario, [("energy_u2", "∫u² dt (V² s)"), ("electrical_energy", "Electrical energy (J)")]), "")
+        sat = T.select(stats, ["saturation_fraction"])
+        durations = {j.dir.name: float(j.summary.get("simulated_time") or j.setting("simulation.duration") or math.nan)
+                     for j in d.jobs}
+        sat["duration"] = [durations[d.job(r["scenario"], r["key"]).dir.name] for _, r in sat.iterrows()]
+        sat["saturated_time_mean"] = sat["saturation_fraction_mean"] * sat["duration"]
+        sat["saturated_time_sd"] = sat["saturation_fraction_sd"] * sat["duration"]
+        link = self.csv("saturation.csv", sat, "saturation time")
+        self.add("## Saturation", "", f"Fraction of the steps with a wheel voltage at ±U_max, and that time in seconds "
+                 f"({link}).", "")
+        for scenario in d.scenarios:
+            self.add(f"### {scenario}", "", T.md_metric_table(
+                sat, scenario, [("saturation_fraction", "Fraction saturated"), ("saturated_time", "Time saturated (s)")]),
+                "")
+
+    def estimation(self, stats) -> None:
+        d = self.data
+        est = T.select(stats, ["d_est_mae", "d_est_mae_ndo", "s_mae"])
+        claim = paper_numbers()["claims"]["estimation"]
+        paper = {"smc_ndo": claim["ndo"], "smc_ndo_nno": claim["ndo_nno"], "smc_ndo_nno_text": claim["ndo_nno"]}
+        est["paper_d_est_mae"] = [paper.get(r["controller"], math.nan) if r["scenario"] == PAPER_SCENARIO
+                                  else math.nan for _, r in est.iterrows()]
+        est["ratio_d_est_mae"] = est["d_est_mae_mean"] / est["paper_d_est_mae"]
+        link = self.csv("estimation.csv", est, "disturbance estimation")
+        self.add("## Disturbance estimation", "",
+                 f"MAE of d_true − d̂ over both wheels (rad/s², units of d), of the NDO part alone, and the MAE of the "
+                 f"sliding variable ({link}). Controllers without an observer have d̂ = 0, so theirs is the mean |d|. "
+                 f"The paper's 48.3 (NDO) and 16.0 (NDO+NNO) are compared with scenario 1.", "")
+        for scenario in d.scenarios:
+            extra = [("Paper", lambda r: T.fmt(r["paper_d_est_mae"])),
+                     ("Ours/paper", lambda r: "–" if T.isnan(r["ratio_d_est_mae"]) else f"×{r['ratio_d_est_mae']:.2f}")]
+            self.add(f"### {scenario}", "", T.md_metric_table(
+                est, scenario, [("d_est_mae", "d estimation MAE"), ("d_est_mae_ndo", "NDO part alone"),
+                                ("s_mae", "s MAE (rad/s)")], extra if scenario == PAPER_SCENARIO else ()), "")
+
+    def segments(self) -> None:
+        d = self.data
+        for kind, title, what in (("zone", "Deviation per terrain zone", "zones along the distance travelled"),
+                                  ("phase", "Deviation per scenario phase", "phases of the scenario in time")):
+            frame = T.segment_frame(d, kind)
+            link = self.csv(f"deviation_by_{kind}.csv", frame, title.lower())
+            self.add(f"## {title}", "", f"Deviation MAE (m), mean ± SD over seeds, within each of the {what} "
+                     f"({link}; also e_x, e_y, e_θ, chattering, estimation MAE and saturation there).", "")
+            if frame.empty:
+                self.add("(no segment rows)", "")
+                continue
+            for scenario in d.scenarios:
+                if (frame["scenario"] == scenario).any():
+                    self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
+
+    def figures(self) -> None:
+        figures, notes = make_figures(self.data, self.figures_dir)
+        self.add("## Figures", "", "One colour per controller in every figure (PID red, SMC blue, SMC-NDO cyan, "
+                 "SMC-NDO-NNO black, text reading purple); the reference and the true disturbance are grey dashed. "
+                 "Each scenario's time-series figures use the first kept seed common to all its jobs.", "")
+        for scenario, figs in figures.items():
+            self.add(f"### {scenario}", "")
+            for f in figs:
+                rel = f.path.relative_to(self.out).as_posix()
+                self.add(f"**{f.title}.** {f.caption}", "", f"![{f.title}]({rel})", "")
+        for note in notes:
+            self.add(f"- Note: {note}")
+        self.add("")
+        self.figure_list = [f.path for figs in figures.values() for f in figs]
+
+    def files(self) -> None:
+        self.add("## Tables (CSV)", "")
+        for what, path in self.csvs:
+            self.add(f"- {self.link(path)}: {what}")
+        self.add("", "Units of every metric: " + "; ".join(f"{m} [{u}]" for m, (u, _) in METRICS.items()) + ".", "")
+
+    def build(self) -> Path:
+        started = time.perf_counter()
+        stats = T.stats_frame(self.data)
+        self.header()
+        self.configuration()
+        self.status()
+        self.table3()
+        self.table4(stats)
+        self.verdicts()
+        self.effort(stats)
+        self.estimation(stats)
+        self.segments()
+        self.figures()
+        self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
+        self.files()
+        self.add(f"_Report built in {time.perf_counter() - started:.1f} s._", "")
+        io.write_text(self.out / "report.md", "\n".join(self.md))
+        return self.out
+
+
+def build(path, out=None) -> Path:
+    data = load(path)
+    out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
+    return Report(data, out_dir).build()
+
+
+__all__ = ["build", "Report", "Job"]

@@ -1,0 +1,245 @@
+"""What a report reads: the jobs of a sweep (or one run dir), their configs, per-seed metrics and segments.
+
+Every table of the report is built from the jobs' own ``metrics.csv`` / ``segments.csv`` (not the sweep-level
+CSVs, which a partial or resumed sweep may not have), so a report always matches the job dirs it lists.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .. import io
+from ..errors import DDMRError
+from ..plots import label_of
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Controllers in the paper's order (then any other, alphabetically).
+CONTROLLER_ORDER = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text", "smc_nno", "open_loop")
+#: The scenario the paper's Table 4 is compared against (the paper does not say which one it is).
+PAPER_SCENARIO = "paper_1"
+#: Override keys that do not tell two jobs apart (launcher, output dirs, plotting).
+_IGNORED_KEYS = ("experiment", "launcher", "cluster", "run.plots", "run.progress")
+
+
+def paper_numbers() -> dict:
+    """The paper's published numbers, shipped as ``ddmr_cli/data/paper_numbers.json``."""
+    text = resources.files("ddmr_cli.data").joinpath("paper_numbers.json").read_text(encoding="utf-8")
+    return json.loads(text)
+
+
+def _override_key(override: str) -> str:
+    return override.partition("=")[0].lstrip("+~")
+
+
+def _ignored(override: str) -> bool:
+    key = _override_key(override)
+    return key.startswith(("hydra.", "cluster.")) or key in _IGNORED_KEYS
+
+
+def flatten(cfg: Any, prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}`` (lists kept as values)."""
+    out: dict[str, Any] = {}
+    if isinstance(cfg, dict):
+        for k, v in cfg.items():
+            out.update(flatten(v, f"{prefix}{k}."))
+    else:
+        out[prefix[:-1]] = cfg
+    return out
+
+
+@dataclass
+class Job:
+    """One complete job: a controller on a scenario over a batch of seeds."""
+
+    dir: Path
+    summary: dict
+    config: dict
+    key: str = ""        # controller, or controller[overrides] when several jobs share controller and scenario
+    extra: list[str] = field(default_factory=list)
+    variant: int = 0     # index among the jobs of the same controller (line style in figures)
+
+    @property
+    def controller(self) -> str:
+        return str(self.summary.get("controller"))
+
+    @property
+    def scenario(self) -> str:
+        return str(self.summary.get("scenario"))
+
+    @property
+    def label(self) -> str:
+        base = label_of(self.controller)
+        return f"{base} ({', '.join(self.extra)})" if self.extra else base
+
+    @property
+    def overrides(self) -> list[str]:
+        return [str(o) for o in self.summary.get("overrides", [])]
+
+    @property
+    def series_seeds(self) -> list[int]:
+        return [int(s) for s in self.summary.get("series_seeds", [])]
+
+    def setting(self, dotted: str, default=None):
+        return flatten(self.config).get(dotted, default)
+
+
+def controller_rank(controller: str) -> tuple[int, str]:
+    return (CONTROLLER_ORDER.index(controller), "") if controller in CONTROLLER_ORDER else (len(CONTROLLER_ORDER),
+                                                                                          controller)
+
+
+@dataclass
+class ReportData:
+    """Everything the report is built from."""
+
+    path: Path
+    single_run: bool
+    jobs: list[Job]
+    failed: list[tuple[Path, dict]]
+    missing: list[dict]
+    metrics: "pd.DataFrame"
+    segments: "pd.DataFrame"
+    multirun: dict | None = None
+    plan: list[dict] | None = None
+    _series: dict = field(default_factory=dict, repr=False)
+
+    def series(self, job: Job, seed: int) -> dict:
+        """One kept seed's time series of a job (read once)."""
+        if job.dir not in self._series:
+            self._series[job.dir] = io.read_series(job.dir / io.SERIES)
+        return self._series[job.dir][seed]
+
+    @property
+    def scenarios(self) -> list[str]:
+        names = sorted({j.scenario for j in self.jobs})
+        return ([PAPER_SCENARIO] if PAPER_SCENARIO in names else []) + [n for n in names if n != PAPER_SCENARIO]
+
+    def jobs_of(self, scenario: str) -> list[Job]:
+        return [j for j in self.jobs if j.scenario == scenario]
+
+    def keys(self, scenario: str | None = None) -> list[str]:
+        """Controller keys in the paper's order."""
+        seen: dict[str, Job] = {}
+        for j in self.jobs:
+            if scenario is None or j.scenario == scenario:
+                seen.setdefault(j.key, j)
+        return sorted(seen, key=lambda k: (controller_rank(seen[k].controller), seen[k].variant, k))
+
+    def job(self, scenario: str, key: str) -> Job | None:
+        return next((j for j in self.jobs if j.scenario == scenario and j.key == key), None)
+
+    def label(self, key: str) -> str:
+        return next(j.label for j in self.jobs if j.key == key)
+
+    def controller_of(self, key: str) -> str:
+        return next(j.controller for j in self.jobs if j.key == key)
+
+    # --- how to regenerate ---------------------------------------------------------------------------------
+    def run_command(self) -> str:
+        """The ``ddmr run`` line that (re)creates this sweep or run in the same dir."""
+        where = shlex.quote(str(self.path))
+        if self.single_run:
+            ovs = [o for o in self.jobs[0].overrides if not o.startswith("hydra.run.dir=")]
+            return " ".join(["ddmr run", *map(shlex.quote, ovs), f"hydra.run.dir={where}"])
+        overrides: list[str] | None = None
+        if self.multirun is not None:
+            ovs = (self.multirun.get("hydra") or {}).get("overrides") or {}
+            extra_hydra = [o for o in ovs.get("hydra") or [] if not o.startswith(("hydra.mode=", "hydra.sweep.dir="))]
+            overrides = list(ovs.get("task") or []) + extra_hydra
+        if overrides is None:  # no multirun.yaml: rebuild the sweep from the planned (or finished) jobs
+            job_lists = [job["overrides"] for job in self.plan] if self.plan else [j.overrides for j in self.jobs]
+            values: dict[str, list[str]] = {}
+            for job in job_lists:
+                for o in job:
+                    if o.startswith("hydra.sweep.dir="):
+                        continue
+                    key, _, value = o.partition("=")
+                    if value not in values.setdefault(key, []):
+                        values[key].append(value)
+            overrides = [f"{k}={','.join(v)}" for k, v in values.items()]
+        return " ".join(["ddmr run -m", *map(shlex.quote, overrides), f"hydra.sweep.dir={where}"])
+
+
+def _read_yaml(path: Path) -> dict:
+    import yaml
+
+    try:
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except (OSError, yaml.YAMLError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _assign_keys(jobs: list[Job]) -> None:
+    """A job's key is its controller, plus the overrides that set it apart when a controller has several jobs
+    on one scenario (e.g. a gain sweep)."""
+    per_job = {id(j): [o for o in j.overrides if not _ignored(o)
+                       and _override_key(o) not in ("controller", "scenario")] for j in jobs}
+    common = set.intersection(*(set(v) for v in per_job.values())) if per_job else set()
+    groups: dict[tuple[str, str], list[Job]] = {}
+    for j in jobs:
+        groups.setdefault((j.controller, j.scenario), []).append(j)
+    clash = {c for (c, _), js in groups.items() if len(js) > 1}
+    for j in jobs:
+        j.extra = [o for o in per_job[id(j)] if o not in common] if j.controller in clash else []
+        j.key = j.controller + (f"[{','.join(j.extra)}]" if j.extra else "")
+    for controller in {j.controller for j in jobs}:
+        keys = sorted({j.key for j in jobs if j.controller == controller})
+        for j in jobs:
+            if j.controller == controller:
+                j.variant = keys.index(j.key)
+
+
+def load(path) -> ReportData:
+    """Read a sweep dir or a single run dir; raises DDMRError when there is nothing to report."""
+    import pandas as pd
+
+    from ..sweep import PLAN, load_sweep
+
+    path = Path(path).expanduser().resolve()
+    if not path.is_dir():
+        raise DDMRError(f"{path}: no such directory (expected a sweep dir from `ddmr run -m` or a run dir)")
+    single = io.read_summary(path) is not None
+    state = load_sweep(path)
+    if not (state.complete or state.failed or state.missing):
+        raise DDMRError(f"{path}: not a sweep or run dir (no {io.SUMMARY}, {PLAN} or job dirs with results)")
+    if not state.complete:
+        names = [d.name for d, _ in state.failed] + [m["dir"] for m in state.missing]
+        raise DDMRError(f"{path}: no complete job to report ({len(state.failed)} failed, {len(state.missing)} "
+                        f"missing: {', '.join(names[:5])}{' ...' if len(names) > 5 else ''})")
+    jobs, metric_frames, segment_frames = [], [], []
+    for job_dir, summary in state.complete:
+        job = Job(job_dir, summary, _read_yaml(job_dir / io.CONFIG))
+        try:
+            metrics = pd.read_csv(job_dir / io.METRICS_CSV)
+            segments = pd.read_csv(job_dir / io.SEGMENTS_CSV)
+        except (OSError, ValueError) as exc:
+            state.failed.append((job_dir, {**summary, "status": "unreadable", "error": f"{type(exc).__name__}: {exc}"}))
+            continue
+        jobs.append(job)
+        metric_frames.append(metrics.assign(job=job_dir.name))
+        segment_frames.append(segments.assign(job=job_dir.name))
+    if not jobs:
+        raise DDMRError(f"{path}: no job with readable results")
+    _assign_keys(jobs)
+    key_of = {j.dir.name: j.key for j in jobs}
+    metrics = pd.concat(metric_frames, ignore_index=True)
+    segments = pd.concat(segment_frames, ignore_index=True)
+    metrics["key"] = metrics["job"].map(key_of)
+    segments["key"] = segments["job"].map(key_of)
+    multirun = _read_yaml(path / "multirun.yaml") if (path / "multirun.yaml").is_file() else None
+    plan = None
+    if (path / PLAN).is_file():
+        try:
+            plan = json.loads((path / PLAN).read_text(encoding="utf-8")).get("jobs")
+        except (OSError, ValueError):
+            plan = None
+    return ReportData(path, single, jobs, list(state.failed), list(state.missing), metrics, segments,
+                      multirun, plan)

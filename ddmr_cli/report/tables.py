@@ -1,0 +1,196 @@
+"""The report's tables: pandas frames (written as CSV) and their markdown renderings."""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import TYPE_CHECKING, Iterable, Sequence
+
+from ..metrics import METRICS
+from .data import PAPER_SCENARIO, ReportData, paper_numbers
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Table 4's columns: (our metric, statistic, paper column, header).
+TABLE4_COLUMNS = (
+    ("deviation_mae", "mean", "deviation_mean", "Deviation mean (m)"),
+    ("deviation_mae", "sd", "deviation_sd", "Deviation SD (m)"),
+    ("e_x_mae", "mean", "e_x_mae", "e_x MAE (m)"),
+    ("e_y_mae", "mean", "e_y_mae", "e_y MAE (m)"),
+    ("e_theta_mae", "mean", "e_theta_mae", "e_θ MAE (rad)"),
+)
+
+
+_NUMERIC = re.compile(r"^\s*([-+−–×]|\d|\[)")
+
+# --- formatting ----------------------------------------------------------------------------------------------
+def isnan(x) -> bool:
+    try:
+        return x is None or math.isnan(float(x))
+    except (TypeError, ValueError):
+        return False
+
+
+def fmt(x, digits: int = 4) -> str:
+    """A number with ``digits`` significant digits; an en dash for missing values."""
+    if isnan(x):
+        return "–"
+    if isinstance(x, str):
+        return x
+    x = float(x)
+    if x == 0:
+        return "0"
+    if abs(x) >= 10 ** digits or abs(x) < 1e-4:
+        return f"{x:.{digits - 1}e}"
+    return f"{x:.{digits}g}"
+
+
+def pct(x, digits: int = 1) -> str:
+    return "–" if isnan(x) else f"{100 * float(x):.{digits}f} %"
+
+
+def pm(mean, sd, digits: int = 4) -> str:
+    return fmt(mean, digits) if isnan(sd) else f"{fmt(mean, digits)} ± {fmt(sd, 2)}"
+
+
+def md_table(headers: Sequence[str], rows: Iterable[Sequence], align: str | None = None) -> str:
+    """A GitHub-flavoured markdown table (first column left-aligned, the others right-aligned)."""
+    def cell(v) -> str:
+        return str(v).replace("|", "\\|").replace("\n", " ")
+
+    rows = [list(r) for r in rows]
+    if align is None:  # numbers right-aligned, text left-aligned
+        align = "".join("r" if rows and all(_NUMERIC.match(str(r[i])) for r in rows) else "l"
+                        for i in range(len(headers)))
+    sep = ["---" if a == "l" else "---:" for a in align]
+    lines = ["| " + " | ".join(map(cell, headers)) + " |", "| " + " | ".join(sep) + " |"]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def unit(metric: str) -> str:
+    return METRICS[metric][0] if metric in METRICS else ""
+
+
+# --- frames --------------------------------------------------------------------------------------------------
+def _base_columns(data: ReportData, scenario: str, key: str) -> dict:
+    job = data.job(scenario, key)
+    return {"scenario": scenario, "controller": job.controller, "key": key, "label": job.label, "job": job.dir.name}
+
+
+def stats_frame(data: ReportData, metrics: Sequence[str] = tuple(METRICS)) -> "pd.DataFrame":
+    """Per scenario and controller, over seeds: runs, diverged runs, mean and SD of each metric (non-diverged)."""
+    import pandas as pd
+
+    rows = []
+    for scenario in data.scenarios:
+        for key in data.keys(scenario):
+            job = data.job(scenario, key)
+            frame = data.metrics[data.metrics["job"] == job.dir.name]
+            ok = frame[frame["status"] == "ok"]
+            row = {**_base_columns(data, scenario, key), "runs": len(frame), "diverged": int((frame["status"] != "ok")
+                                                                                               .sum())}
+            for m in metrics:
+                vals = ok[m].astype(float) if m in ok else pd.Series(dtype=float)
+                row[f"{m}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
+                row[f"{m}_sd"] = float(vals.std(ddof=1)) if vals.notna().sum() > 1 else math.nan
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def paper_row_name(controller: str) -> str | None:
+    return paper_numbers()["controller_names"].get(controller)
+
+
+def table4_frame(stats: "pd.DataFrame") -> "pd.DataFrame":
+    """Table 4 with the paper's numbers and the ratio ours/paper (scenario 1 rows only)."""
+    import pandas as pd
+
+    paper = paper_numbers()["table4"]["rows"]
+    rows = []
+    for _, r in stats.iterrows():
+        row = {k: r[k] for k in ("scenario", "controller", "key", "label", "runs", "diverged")}
+        name = paper_row_name(r["controller"]) if r["scenario"] == PAPER_SCENARIO else None
+        row["paper_row"] = name or ""
+        for metric, stat, col, _ in TABLE4_COLUMNS:
+            ours = r[f"{metric}_{stat}"]
+            row[col] = ours
+            published = paper[name][col] if name in paper else math.nan
+            row[f"paper_{col}"] = published
+            row[f"ratio_{col}"] = ours / published if not isnan(published) and not isnan(ours) else math.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def segment_frame(data: ReportData, kind: str,
+                  metrics: Sequence[str] = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae", "chattering",
+                                            "d_est_mae", "saturation_fraction")) -> "pd.DataFrame":
+    """Per scenario, controller and ``kind`` segment (``zone`` or ``phase``): mean and SD over seeds."""
+    import pandas as pd
+
+    seg = data.segments
+    seg = seg[seg["segment"].astype(str).str.startswith(f"{kind}:") & (seg["status"] == "ok")]
+    rows = []
+    for scenario in data.scenarios:
+        for key in data.keys(scenario):
+            job = data.job(scenario, key)
+            frame = seg[seg["job"] == job.dir.name]
+            for name in dict.fromkeys(frame["segment"]):  # in the job's order
+                part = frame[frame["segment"] == name]
+                row = {**_base_columns(data, scenario, key), kind: name.split(":", 1)[1], "runs": len(part)}
+                for m in metrics:
+                    vals = part[m].astype(float)
+                    row[f"{m}_mean"] = float(vals.mean()) if vals.notna().any() else math.nan
+                    row[f"{m}_sd"] = float(vals.std(ddof=1)) if vals.notna().sum() > 1 else math.nan
+                rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def select(stats: "pd.DataFrame", metrics: Sequence[str]) -> "pd.DataFrame":
+    keep = ["scenario", "controller", "key", "label", "runs", "diverged"]
+    return stats[keep + [f"{m}_{s}" for m in metrics for s in ("mean", "sd")]].copy()
+
+
+# --- markdown ------------------------------------------------------------------------------------------------
+def md_metric_table(frame: "pd.DataFrame", scenario: str, metrics: Sequence[tuple[str, str]],
+                    extra: Sequence[tuple[str, callable]] = ()) -> str:
+    """Rows: controllers of one scenario; cells: mean ± SD of each ``(metric, header)``."""
+    part = frame[frame["scenario"] == scenario]
+    headers = ["Controller"] + [h for _, h in metrics] + [h for h, _ in extra]
+    rows = []
+    for _, r in part.iterrows():
+        rows.append([r["label"]] + [pm(r[f"{m}_mean"], r[f"{m}_sd"]) for m, _ in metrics]
+                    + [f(r) for _, f in extra])
+    return md_table(headers, rows)
+
+
+def md_table4(t4: "pd.DataFrame", scenario: str) -> str:
+    part = t4[t4["scenario"] == scenario]
+    with_paper = scenario == PAPER_SCENARIO
+    headers = ["Controller", "Runs", "Diverged"] + [h for *_, h in TABLE4_COLUMNS]
+    rows = []
+    for _, r in part.iterrows():
+        cells = [r["label"], str(int(r["runs"])), str(int(r["diverged"]))]
+        for _, _, col, _ in TABLE4_COLUMNS:
+            ours = fmt(r[col])
+            if with_paper and not isnan(r[f"paper_{col}"]):
+                ours += f" (paper {fmt(r[f'paper_{col}'])}, ×{r[f'ratio_{col}']:.2f})"
+            elif with_paper:
+                ours += " (paper –)"
+            cells.append(ours)
+        rows.append(cells)
+    return md_table(headers, rows)
+
+
+def md_segments(frame: "pd.DataFrame", scenario: str, kind: str, metric: str = "deviation_mae") -> str:
+    """Rows: controllers; columns: segments; cells: mean ± SD of ``metric``."""
+    part = frame[frame["scenario"] == scenario]
+    names = list(dict.fromkeys(part[kind]))
+    headers = ["Controller"] + [f"{n} ({unit(metric)})" for n in names]
+    rows = []
+    for label in dict.fromkeys(part["label"]):
+        sub = part[part["label"] == label].set_index(kind)
+        rows.append([label] + [pm(sub.loc[n, f"{metric}_mean"], sub.loc[n, f"{metric}_sd"]) if n in sub.index
+                               else "–" for n in names])
+    return md_table(headers, rows)

@@ -1,0 +1,176 @@
+"""The installed ``ddmr`` console script end to end: single run, sweeps through joblib, submitit_local and the
+basic launcher (bit-identical numbers), failing jobs, resume, bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import ddmr_executable, run_ddmr
+
+from ddmr_cli.io import read_series
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+SMOKE_JOBS = 10
+pytestmark = pytest.mark.slow
+
+
+def _metrics(sweep_dir: Path) -> pd.DataFrame:
+    frame = pd.read_csv(sweep_dir / "sweep_metrics.csv")
+    return frame.sort_values(["controller", "scenario", "seed"]).reset_index(drop=True)
+
+
+def test_help_lists_commands_and_config_groups(tmp_path):
+    top = run_ddmr(["--help"], cwd=tmp_path)
+    assert top.returncode == 0 and "run" in top.stdout and "report" in top.stdout and "bench" in top.stdout
+    helped = run_ddmr(["run", "--help"], cwd=tmp_path)
+    assert helped.returncode == 0
+    for group in ("controller", "scenario", "terrain", "robot", "trajectory", "smc_ndo_nno", "paper_2"):
+        assert group in helped.stdout, group
+    assert not (tmp_path / "outputs").exists()
+
+
+def test_cfg_job_prints_the_composed_config_and_runs_nothing(tmp_path):
+    proc = run_ddmr(["run", "controller=pid", "--cfg", "job"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "kp: 5.0" in proc.stdout and "_target_: ddmr_cli.controllers.PID" in proc.stdout
+    assert not (tmp_path / "outputs").exists()
+
+
+def test_single_run_writes_every_output(tmp_path):
+    proc = run_ddmr(["run", "run.n_runs=3", "simulation.duration=1.0", "controller=smc_ndo_nno",
+                     "hydra.run.dir=out"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "out"
+    assert "deviation_mae" in proc.stderr + proc.stdout and str(out) in proc.stderr + proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "complete" and summary["statistics"]["runs"] == 3
+    assert summary["parameters"]["L"] == 50.0 and summary["parameters"]["gamma"] == 50.0
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert list(metrics.seed) == [0, 1, 2] and np.isfinite(metrics.deviation_mae).all()
+    segments = pd.read_csv(out / "segments.csv")
+    assert {"total", "zone:flat", "phase:terrain"} <= set(segments.segment)
+    series = read_series(out / "series.npz")
+    assert list(series) == [0] and series[0]["t"].shape == (1000,)
+    for name in ("trajectory", "errors", "control"):
+        data = (out / "plots" / f"{name}.png").read_bytes()
+        assert data.startswith(PNG_SIGNATURE) and len(data) > 5000
+    assert (out / "config.yaml").read_text().count("hydra") == 0
+
+
+def test_smoke_sweep_through_joblib(smoke_sweep_dir):
+    jobs = pd.read_csv(smoke_sweep_dir / "sweep_jobs.csv")
+    assert len(jobs) == SMOKE_JOBS and set(jobs.status) == {"complete"}
+    metrics = _metrics(smoke_sweep_dir)
+    assert len(metrics) == SMOKE_JOBS * 2
+    assert set(metrics.controller) == {"pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"}
+    assert set(metrics.scenario) == {"paper_1", "paper_2"}
+    assert np.isfinite(metrics.deviation_mae).all()
+    plan = json.loads((smoke_sweep_dir / "sweep_plan.json").read_text())
+    assert sorted(j["dir"] for j in plan["jobs"]) == sorted(jobs.job)
+
+
+def test_launchers_and_batch_sizes_give_bit_identical_numbers(smoke_sweep_dir, tmp_path):
+    """joblib (fixture), submitit_local and the basic launcher; and seed 1 alone vs inside a batch."""
+    subset = ["controller=pid,smc_ndo_nno", "scenario=paper_2"]
+    reference = _metrics(smoke_sweep_dir)
+    reference = reference[reference.controller.isin(["pid", "smc_ndo_nno"]) & (reference.scenario == "paper_2")]
+    reference = reference.drop(columns="job").reset_index(drop=True)
+    for launcher in ("launcher=submitit_local", "launcher=basic"):
+        sweep_dir = tmp_path / launcher.split("=")[1]
+        proc = run_ddmr(["run", "-m", "+experiment=smoke", launcher, *subset, f"hydra.sweep.dir={sweep_dir}"],
+                        cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        got = _metrics(sweep_dir).drop(columns="job")
+        pd.testing.assert_frame_equal(got, reference, check_exact=True)
+    alone = tmp_path / "alone"
+    proc = run_ddmr(["run", "+experiment=smoke", "controller=smc_ndo_nno", "scenario=paper_2", "run.base_seed=1",
+                     "run.n_runs=1", f"hydra.run.dir={alone}"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    single = pd.read_csv(alone / "metrics.csv")
+    in_batch = reference[(reference.controller == "smc_ndo_nno") & (reference.seed == 1)].reset_index(drop=True)
+    pd.testing.assert_frame_equal(single, in_batch, check_exact=True)
+
+
+def test_a_failing_job_is_recorded_and_does_not_stop_the_sweep(tmp_path):
+    sweep_dir = tmp_path / "sweep"
+    # make one job's metrics.csv unwritable (a directory in its place): that job fails at its first write
+    blocked = sweep_dir / "controller=smc,scenario=paper_1" / "metrics.csv"
+    blocked.mkdir(parents=True)
+    proc = run_ddmr(["run", "-m", "+experiment=smoke", "controller=pid,smc", "scenario=paper_1",
+                     f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path)
+    assert proc.returncode == 1
+    jobs = pd.read_csv(sweep_dir / "sweep_jobs.csv").set_index("job")
+    assert jobs.loc["controller=smc,scenario=paper_1", "status"] == "failed"
+    assert "IsADirectoryError" in jobs.loc["controller=smc,scenario=paper_1", "error"]
+    assert jobs.loc["controller=pid,scenario=paper_1", "status"] == "complete"
+    assert set(pd.read_csv(sweep_dir / "sweep_metrics.csv").controller) == {"pid"}
+    assert "1 failed" in proc.stdout
+
+
+def test_resume_skips_complete_jobs_and_reruns_missing_ones(tmp_path):
+    sweep_dir = tmp_path / "sweep"
+    args = ["run", "-m", "+experiment=smoke", "controller=pid,smc,smc_ndo", "scenario=paper_1",
+            f"hydra.sweep.dir={sweep_dir}", "launcher=basic"]
+    first = run_ddmr(args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr[-2000:]
+    before = _metrics(sweep_dir)
+    (sweep_dir / "controller=smc,scenario=paper_1" / "summary.json").unlink()
+    second = run_ddmr(args, cwd=tmp_path)
+    assert second.returncode == 0, second.stderr[-2000:]
+    log = second.stdout + second.stderr
+    assert log.count("skipped") == 2, log[-3000:]
+    pd.testing.assert_frame_equal(_metrics(sweep_dir), before, check_exact=True)
+    # a changed config (another seed range) is not skipped
+    third = run_ddmr([*args, "run.base_seed=5"], cwd=tmp_path)
+    assert third.returncode == 0 and "skipped" not in third.stdout + third.stderr
+
+
+@pytest.mark.parametrize("override,message", [
+    ("robot.mass=-1", "robot.mass=-1.0: must be > 0"),
+    ("controller=foo", "controller=foo: unknown controller; available: "),
+    ("simulation.dt=0", "simulation.dt=0.0: must be > 0"),
+    ("robot.masss=3", "masss"),
+    ("controller._target_=os.system", "only ddmr_cli"),
+])
+def test_bad_input_is_one_line_exit_2_and_leaves_nothing(tmp_path, override, message):
+    proc = run_ddmr(["run", override], cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_value_inside_a_sweep_is_refused_before_any_job(tmp_path):
+    proc = run_ddmr(["run", "-m", "+experiment=smoke", "controller.switching_gain=4,-1", "controller=smc"], cwd=tmp_path)
+    assert proc.returncode == 2 and "controller.switching_gain[0]=-1" not in proc.stderr
+    assert "switching_gain" in proc.stderr and "-1" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_killed_sweep_resumes_to_the_same_totals(tmp_path, smoke_sweep_dir):
+    """Kill the sweep's parent mid-way, resume into the same dir: only unfinished jobs run again."""
+    sweep_dir = tmp_path / "sweep"
+    args = ["run", "-m", "+experiment=smoke", f"hydra.sweep.dir={sweep_dir}", "launcher=basic"]
+    proc = subprocess.Popen([ddmr_executable(), *args], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(sweep_dir.glob("*/summary.json"))) < 3:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done = len(list(sweep_dir.glob("*/summary.json")))
+    assert 3 <= done < SMOKE_JOBS
+    resumed = run_ddmr(args, cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert (resumed.stdout + resumed.stderr).count("skipped") == done
+    pd.testing.assert_frame_equal(_metrics(sweep_dir).drop(columns="job"),
+                                  _metrics(smoke_sweep_dir).drop(columns="job"), check_exact=True)

@@ -1,0 +1,245 @@
+"""Determinism, batch independence and divergence handling of the engine (simulation.py docstring).
+
+The engine promises: each run draws its noise from its own generator and nothing couples runs, so seed k gives
+bit-identical numbers alone or inside any batch, in any order, whatever the chunking of the time axis; a run
+whose deviation exceeds ``divergence_bound`` is marked diverged with the time it happened, and the others carry
+on unaffected.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ddmr_cli.simulation as simulation_module
+from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, Phase, RBFNetworkObserver, Scenario, Simulation,
+                      Terrain, TerrainZone, WheelController, simulate)
+from ddmr_cli.scenario import DampingUncertainty
+
+# short zones and phases, so that a 0.5 s run crosses every zone and phase and uses every noise channel
+TERRAIN = Terrain(zones=(TerrainZone("flat", 0.0, 0.1, 0.02), TerrainZone("very_rough", 0.15, 100.0, 0.10),
+                         TerrainZone("slightly_rough", 0.3, 5.0, 0.05)), correlation_time=0.02)
+SCENARIO = Scenario("short_2", (Phase("terrain", 0.0, True, False), Phase("uncertainty", 0.15, False, True),
+                                Phase("both", 0.3, True, True)), DampingUncertainty(0.5, 0.4, -0.5, 1.0))
+SEEDS = list(range(8))
+K = 5
+
+
+def make_sim(duration=0.5, **kw):
+    ctrl = SMC(ndo=NonlinearDisturbanceObserver(50.0), nn=RBFNetworkObserver())
+    return Simulation(controller=ctrl, terrain=TERRAIN, scenario=SCENARIO, dt=1e-3, duration=duration, **kw)
+
+
+def assert_metrics_equal(a, ia, b, ib):
+    assert a.segments == b.segments
+    for name in a.metrics:
+        np.testing.assert_array_equal(a.metrics[name][ia], b.metrics[name][ib], err_msg=name)
+        assert np.array_equal(a.metrics[name][ia], b.metrics[name][ib], equal_nan=True), name
+
+
+def assert_series_equal(sa, sb):
+    assert sa.keys() == sb.keys()
+    for ch in sa:
+        assert np.array_equal(sa[ch], sb[ch], equal_nan=True), ch
+
+
+@pytest.fixture(scope="module")
+def batch():
+    return simulate(make_sim(), seeds=SEEDS, keep_series=[K])
+
+
+def test_same_seeds_twice_bit_identical(batch):
+    again = simulate(make_sim(), seeds=SEEDS, keep_series=[K])
+    for name in batch.metrics:
+        assert np.array_equal(batch.metrics[name], again.metrics[name], equal_nan=True), name
+    assert_series_equal(batch.series[K], again.series[K])
+    assert np.array_equal(batch.diverged, again.diverged)
+
+
+def test_the_run_really_uses_every_zone_phase_and_noise_channel(batch):
+    s = batch.series[K]
+    assert set(np.unique(s["zone"])) == {0.0, 1.0, 2.0}
+    assert np.any(s["damping_scale"] != 1.0) and np.any(s["roughness"] == 100.0)
+    assert not batch.diverged.any()
+
+
+def test_different_seeds_give_different_numbers(batch):
+    dev = batch.metric("deviation_mae")
+    assert len(np.unique(dev)) == len(SEEDS)
+    for name in ("chattering", "d_est_mae", "energy_u2"):
+        assert len(np.unique(batch.metric(name))) == len(SEEDS), name
+
+
+def test_seed_alone_equals_seed_in_batch_metrics(batch):
+    alone = simulate(make_sim(), seeds=[K], keep_series=[K])
+    assert_metrics_equal(alone, 0, batch, SEEDS.index(K))
+
+
+def test_seed_alone_equals_seed_in_batch_series(batch):
+    alone = simulate(make_sim(), seeds=[K], keep_series=[K])
+    assert_series_equal(alone.series[K], batch.series[K])
+
+
+def test_seed_in_shuffled_batch_equals_seed_in_batch(batch):
+    order = [7, 3, 5, 0, 6, 2, 4, 1]
+    shuffled = simulate(make_sim(), seeds=order, keep_series=[K, 2])
+    for i, seed in enumerate(order):
+        assert_metrics_equal(shuffled, i, batch, SEEDS.index(seed))
+    assert_series_equal(shuffled.series[K], batch.series[K])
+
+
+def test_seed_in_a_bigger_batch_equals_seed_in_batch(batch):
+    bigger = simulate(make_sim(), seeds=list(range(20, 30)) + SEEDS, keep_series=[K])
+    for i, seed in enumerate(SEEDS):
+        assert_metrics_equal(bigger, 10 + i, batch, i)
+    assert_series_equal(bigger.series[K], batch.series[K])
+
+
+def run_counting_chunks(**kw):
+    calls = []
+    res = simulate(make_sim(), seeds=SEEDS, keep_series=[K], progress=lambda done, total: calls.append(done), **kw)
+    return res, len(calls)
+
+
+@pytest.fixture(scope="module")
+def default_chunks():
+    return run_counting_chunks()
+
+
+def test_chunk_size_does_not_change_series(default_chunks, monkeypatch):
+    default, n_default = default_chunks
+    monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 1)  # the smallest chunks the engine allows
+    chunked, n_chunked = run_counting_chunks()
+    assert n_chunked > n_default  # the time axis really is cut differently
+    assert_series_equal(chunked.series[K], default.series[K])
+    assert np.array_equal(chunked.diverged, default.diverged)
+
+
+def test_chunk_size_does_not_change_metrics(default_chunks, monkeypatch):
+    default, n_default = default_chunks
+    monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 1)  # the smallest chunks the engine allows
+    chunked, n_chunked = run_counting_chunks()
+    assert n_chunked > n_default
+    for i in range(len(SEEDS)):
+        assert_metrics_equal(chunked, i, default, i)
+
+
+def test_progress_reports_every_chunk(monkeypatch):
+    monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 1)  # the smallest chunks the engine allows
+    calls = []
+    simulate(make_sim(duration=0.6), seeds=[0, 1], progress=lambda done, total: calls.append((done, total)))
+    assert len(calls) >= 2
+    assert all(total == 600 for _, total in calls)
+    done = [d for d, _ in calls]
+    assert done == sorted(set(done)) and done[-1] == 600 and done[0] > 0
+
+
+# --------------------------------------------------------------------------------------------------------------
+# divergence
+# --------------------------------------------------------------------------------------------------------------
+
+DIV_SEEDS = list(range(10))
+HARSH = Terrain(zones=(TerrainZone("very_rough", 0.0, 300.0, 0.10),), correlation_time=0.02)
+
+
+def harsh_sim(bound):
+    """PID on very rough terrain, started on the reference so the deviation is all due to the terrain."""
+    return Simulation(controller=PID(), terrain=HARSH, dt=1e-3, duration=0.4, initial_pose=(0.0, 0.0, 0.0),
+                      divergence_bound=bound)
+
+
+@pytest.fixture(scope="module")
+def divergence_pair():
+    free = simulate(harsh_sim(1e9), seeds=DIV_SEEDS, keep_series=DIV_SEEDS)
+    max_dev = free.metric("deviation_max")
+    bound = float(np.median(max_dev))  # between per-seed maxima: some runs, not all, exceed it
+    bounded = simulate(harsh_sim(bound), seeds=DIV_SEEDS, keep_series=DIV_SEEDS)
+    return free, bounded, bound
+
+
+def test_divergence_marks_exactly_the_runs_over_the_bound(divergence_pair):
+    free, bounded, bound = divergence_pair
+    assert not free.diverged.any()
+    expected = free.metric("deviation_max") > bound
+    assert 0 < expected.sum() < len(DIV_SEEDS)
+    np.testing.assert_array_equal(bounded.diverged, expected)
+
+
+def test_divergence_time_is_first_step_over_the_bound(divergence_pair):
+    free, bounded, bound = divergence_pair
+    for i, seed in enumerate(DIV_SEEDS):
+        s = free.series[seed]
+        if bounded.diverged[i]:
+            first = np.flatnonzero(s["deviation"] > bound)[0]
+            assert bounded.divergence_time[i] == pytest.approx(s["t"][first], abs=1e-12)
+        else:
+            assert np.isnan(bounded.divergence_time[i])
+    assert np.all(np.isnan(free.divergence_time))
+
+
+def test_diverged_runs_do_not_touch_the_others(divergence_pair):
+    free, bounded, _ = divergence_pair
+    ok = ~bounded.diverged
+    for name in free.metrics:
+        assert np.array_equal(bounded.metrics[name][ok], free.metrics[name][ok], equal_nan=True), name
+    for i, seed in enumerate(DIV_SEEDS):
+        if ok[i]:
+            assert_series_equal(bounded.series[seed], free.series[seed])
+
+
+def test_diverged_runs_metrics_are_nan(divergence_pair):
+    _, bounded, _ = divergence_pair
+    for name, arr in bounded.metrics.items():
+        assert np.all(np.isnan(arr[bounded.diverged])), name
+
+
+def test_summary_counts_diverged_and_averages_the_rest(divergence_pair):
+    free, bounded, _ = divergence_pair
+    summ = bounded.summary()
+    ok = ~bounded.diverged
+    assert summ["runs"] == len(DIV_SEEDS)
+    assert summ["diverged"] == int(bounded.diverged.sum())
+    assert summ["deviation_mae_mean"] == pytest.approx(np.mean(free.metric("deviation_mae")[ok]), rel=1e-12)
+    assert summ["deviation_mae_sd"] == pytest.approx(np.std(free.metric("deviation_mae")[ok], ddof=1), rel=1e-10)
+    table = bounded.to_pandas()
+    assert list(table["status"] == "diverged") == list(bounded.diverged)
+    assert table.loc[bounded.diverged, "deviation_mae"].isna().all()
+
+
+class NaNAfter(WheelController):
+    """Constant 11 V, except that run 0 gets a NaN command from step ``k_bad`` on (a numerically broken run)."""
+
+    name = "nan_after"
+
+    def __init__(self, k_bad):
+        self.k_bad = k_bad
+
+    def reset(self, w0):
+        super().reset(w0)
+        self.k = 0
+
+    def command(self, w, w_d, w_d_dot):
+        u = np.full(w.shape, 11.0)
+        if self.k >= self.k_bad:
+            u[0] = np.nan
+        self.k += 1
+        self.s = w_d - w
+        return u
+
+
+def test_non_finite_deviation_counts_as_divergence():
+    """A run whose state turns NaN is diverged even with an infinite bound, at the first step whose deviation is
+    NaN; the other run is unaffected. A NaN voltage at step 30 makes w_31 NaN (Euler), hence the pose x_32: the
+    deviation is first NaN at t = 32 dt."""
+    def sim(ctrl):
+        return Simulation(controller=ctrl, terrain=Terrain(), dt=1e-3, duration=0.1, initial_pose=(0.0, 0.0, 0.0),
+                          divergence_bound=float("inf"))
+    res = simulate(sim(NaNAfter(30)), seeds=[0, 1], keep_series=[1])
+    ref = simulate(sim(NaNAfter(10**9)), seeds=[0, 1], keep_series=[1])
+    np.testing.assert_array_equal(res.diverged, [True, False])
+    assert res.divergence_time[0] == pytest.approx(0.032, abs=1e-12)
+    assert np.isnan(res.metric("deviation_mae")[0])
+    assert not ref.diverged.any()
+    for name in ref.metrics:
+        assert np.array_equal(res.metrics[name][1], ref.metrics[name][1], equal_nan=True), name
+    assert_series_equal(res.series[1], ref.series[1])

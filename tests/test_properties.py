@@ -1,0 +1,264 @@
+"""Property-based tests (hypothesis) of the kinematics, the terrain zones, the engine's saturation and the config
+validators."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from ddmr_cli import PID, SMC, NonlinearDisturbanceObserver, Robot, Simulation, Terrain, TerrainZone, simulate
+from ddmr_cli import kinematics
+from ddmr_cli.config import validate
+from ddmr_cli.errors import ConfigError
+
+FAST = settings(max_examples=60, deadline=None, database=None)
+SLOW = settings(max_examples=8, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
+
+speeds = st.floats(-100.0, 100.0, allow_nan=False, allow_infinity=False)
+radii = st.floats(0.01, 0.5)
+tracks = st.floats(0.05, 1.0)
+angles = st.floats(-1e4, 1e4, allow_nan=False, allow_infinity=False)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# kinematics
+# --------------------------------------------------------------------------------------------------------------
+
+
+@FAST
+@given(v=st.floats(-5.0, 5.0), omega=st.floats(-10.0, 10.0), R=radii, L=tracks)
+def test_inverse_then_forward_is_identity(v, omega, R, L):
+    v2, omega2 = kinematics.forward(*kinematics.inverse(v, omega, R, L), R, L)
+    assert v2 == pytest.approx(v, rel=1e-12, abs=1e-12)
+    assert omega2 == pytest.approx(omega, rel=1e-12, abs=1e-11)
+
+
+@FAST
+@given(wr=speeds, wl=speeds, R=radii, L=tracks)
+def test_forward_then_inverse_is_identity(wr, wl, R, L):
+    wr2, wl2 = kinematics.inverse(*kinematics.forward(wr, wl, R, L), R, L)
+    assert wr2 == pytest.approx(wr, rel=1e-12, abs=1e-11)
+    assert wl2 == pytest.approx(wl, rel=1e-12, abs=1e-11)
+
+
+@FAST
+@given(a=angles)
+@example(a=math.pi)
+@example(a=-math.pi)
+@example(a=3 * math.pi)
+@example(a=float(np.nextafter(math.pi, 4.0)))  # the next float above pi must wrap to just above -pi, not to -pi
+@example(a=float(np.nextafter(-math.pi, 0.0)))
+def test_wrap_angle_range_and_offset(a):
+    w = kinematics.wrap_angle(a)
+    assert -math.pi < w <= math.pi
+    turns = (a - w) / (2.0 * math.pi)
+    assert abs(turns - round(turns)) <= 1e-12 * max(1.0, abs(a))
+
+
+@FAST
+@given(a=st.lists(angles, min_size=1, max_size=20))
+def test_wrap_angle_vectorised_agrees_with_scalar(a):
+    arr = kinematics.wrap_angle(np.array(a))
+    assert arr.shape == (len(a),)
+    np.testing.assert_array_equal(arr, [kinematics.wrap_angle(x) for x in a])
+
+
+poses = st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-10, 10))
+
+
+@FAST
+@given(robot=poses, ref=poses)
+def test_pose_error_invariant_to_full_turns(robot, ref):
+    x, y, th = robot
+    xr, yr, thr = ref
+    base = kinematics.pose_error(x, y, th, xr, yr, thr)
+    for shifted in (kinematics.pose_error(x, y, th + 2 * math.pi, xr, yr, thr),
+                    kinematics.pose_error(x, y, th, xr, yr, thr - 2 * math.pi)):
+        assert shifted[0] == pytest.approx(base[0], abs=1e-11)
+        assert shifted[1] == pytest.approx(base[1], abs=1e-11)
+        # the heading errors agree as angles (near +-pi they may land on opposite ends of the interval)
+        d = shifted[2] - base[2]
+        assert abs(math.remainder(d, 2 * math.pi)) < 1e-12
+
+
+@FAST
+@given(robot=poses, ref=poses)
+def test_pose_error_preserves_distance(robot, ref):
+    x, y, th = robot
+    xr, yr, thr = ref
+    e_x, e_y, _ = kinematics.pose_error(x, y, th, xr, yr, thr)
+    assert math.hypot(e_x, e_y) == pytest.approx(math.hypot(xr - x, yr - y), rel=1e-12, abs=1e-12)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# terrain zones
+# --------------------------------------------------------------------------------------------------------------
+
+
+@st.composite
+def terrains_and_distances(draw):
+    gaps = draw(st.lists(st.floats(0.01, 20.0), min_size=0, max_size=6))
+    starts = [0.0] + list(np.cumsum(gaps))
+    zones = [TerrainZone(f"z{i}", float(s), 1.0, 0.0) for i, s in enumerate(starts)]
+    distance = draw(st.one_of(st.floats(0.0, starts[-1] + 30.0), st.sampled_from(starts)))
+    return Terrain(zones=zones), starts, distance
+
+
+@FAST
+@given(case=terrains_and_distances())
+def test_zone_index_contains_the_distance(case):
+    terrain, starts, distance = case
+    i = int(terrain.zone_index(np.array([distance]))[0])
+    assert 0 <= i < len(starts)
+    upper = starts[i + 1] if i + 1 < len(starts) else math.inf
+    assert starts[i] <= distance < upper
+
+
+@FAST
+@given(case=terrains_and_distances())
+def test_zone_index_vectorised(case):
+    terrain, starts, _ = case
+    d = np.linspace(0.0, starts[-1] + 5.0, 17)
+    idx = terrain.zone_index(d)
+    expected = [max(j for j, s in enumerate(starts) if s <= dk) for dk in d]
+    np.testing.assert_array_equal(idx, expected)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# saturation inside the engine
+# --------------------------------------------------------------------------------------------------------------
+
+ROUGH = Terrain(zones=[TerrainZone("rough", 0.0, 100.0, 0.1)])
+
+
+@SLOW
+@given(lam=st.floats(1.0, 400.0), k=st.floats(0.0, 200.0), ndo=st.booleans(),
+       u_max=st.floats(3.0, 30.0), seed=st.integers(0, 2**31))
+def test_smc_applied_voltage_within_u_max(lam, k, ndo, u_max, seed):
+    robot = Robot(max_voltage=u_max)
+    ctrl = SMC(lam=lam, switching_gain=k, ndo=NonlinearDisturbanceObserver(50.0) if ndo else None)
+    sim = Simulation(controller=ctrl, robot=robot, terrain=ROUGH, dt=1e-3, duration=0.05,
+                     initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds="rest", divergence_bound=1e9)
+    res = simulate(sim, seeds=[seed], keep_series=[seed])
+    s = res.series[seed]
+    u = np.concatenate([s["u_right"], s["u_left"]])
+    assert np.all(np.abs(u) <= u_max)
+    # first step in closed form: w = 0, e = s = w_ref = 1/R on both wheels, w_d' = 0, f(0) = 0, d_hat = 0,
+    # sat(s / Phi) = 1, so u_cmd = g^-1 (lambda s + K) [1, 1] = (J11 + J12) / K_u (lambda / R + K) on both wheels
+    J = robot.inertia_matrix
+    u_cmd0 = (J[0, 0] + J[0, 1]) / robot.voltage_gain * (lam / robot.wheel_radius + k)
+    assert s["u_right"][0] == pytest.approx(min(u_cmd0, u_max), rel=1e-12)
+    assert s["u_left"][0] == pytest.approx(min(u_cmd0, u_max), rel=1e-12)
+
+
+@SLOW
+@given(kp=st.floats(0.0, 50.0), ki=st.floats(0.0, 50.0), kd=st.floats(0.0, 0.05), seed=st.integers(0, 1000))
+def test_pid_applied_voltage_within_u_max(kp, ki, kd, seed):
+    sim = Simulation(controller=PID(kp=kp, ki=ki, kd=kd), terrain=ROUGH, dt=1e-3, duration=0.05,
+                     initial_wheel_speeds="rest", divergence_bound=1e9)
+    res = simulate(sim, seeds=[seed], keep_series=[seed])
+    u = np.concatenate([res.series[seed]["u_right"], res.series[seed]["u_left"]])
+    assert np.all(np.abs(u) <= Robot().max_voltage)
+    assert 0.0 <= res.metric("saturation_fraction")[0] <= 1.0
+
+
+# --------------------------------------------------------------------------------------------------------------
+# config validators
+# --------------------------------------------------------------------------------------------------------------
+
+keys = st.from_regex(r"[a-z]{1,8}\.[a-z_]{1,10}", fullmatch=True)
+finite_pos = st.floats(min_value=1e-300, max_value=1e300)
+non_finite = st.sampled_from([math.inf, -math.inf, math.nan])
+
+
+@FAST
+@given(key=keys, v=st.one_of(finite_pos, st.integers(1, 10**9)))
+def test_positive_accepts_positive_numbers(key, v):
+    out = validate.positive(key, v)
+    assert isinstance(out, float) and out == float(v)
+
+
+@FAST
+@given(key=keys, v=st.one_of(st.floats(max_value=0.0, allow_nan=False), st.integers(-10**9, 0), non_finite,
+                             st.text(max_size=3), st.booleans(), st.none()))
+def test_positive_rejects_with_key(key, v):
+    with pytest.raises(ConfigError) as err:
+        validate.positive(key, v)
+    assert err.value.key == key and key in str(err.value)
+
+
+@FAST
+@given(key=keys, v=st.one_of(st.floats(0.0, 1e300), st.integers(0, 10**9)))
+def test_non_negative_accepts(key, v):
+    assert validate.non_negative(key, v) == float(v)
+
+
+@FAST
+@given(key=keys, v=st.one_of(st.floats(max_value=-1e-300, allow_nan=False), st.integers(-10**9, -1), non_finite,
+                             st.booleans()))
+def test_non_negative_rejects_with_key(key, v):
+    with pytest.raises(ConfigError) as err:
+        validate.non_negative(key, v)
+    assert err.value.key == key and key in str(err.value)
+
+
+@FAST
+@given(key=keys, v=st.one_of(st.floats(0.0, 1e6), st.tuples(st.floats(0.0, 1e6), st.floats(0.0, 1e6)).map(list)))
+def test_per_wheel_accepts_scalar_or_pair(key, v):
+    out = validate.per_wheel(key, v)
+    assert out.shape == (2,)
+    np.testing.assert_array_equal(out, [v, v] if not isinstance(v, list) else v)
+
+
+@FAST
+@given(key=keys, items=st.lists(st.floats(0.0, 10.0), min_size=0, max_size=5).filter(lambda xs: len(xs) != 2))
+def test_per_wheel_rejects_wrong_length(key, items):
+    with pytest.raises(ConfigError) as err:
+        validate.per_wheel(key, items)
+    assert err.value.key == key and key in str(err.value)
+
+
+@FAST
+@given(key=keys, good=st.floats(0.0, 10.0), bad=st.one_of(non_finite, st.floats(max_value=-1e-9)),
+       index=st.integers(0, 1))
+def test_per_wheel_rejects_bad_element_naming_it(key, good, bad, index):
+    pair = [good, good]
+    pair[index] = bad
+    with pytest.raises(ConfigError) as err:
+        validate.per_wheel(key, pair)
+    assert err.value.key == f"{key}[{index}]" and key in str(err.value)
+
+
+@FAST
+@given(key=keys, v=st.one_of(st.floats(max_value=0.0, allow_nan=False), non_finite))
+def test_per_wheel_with_positive_rule_rejects(key, v):
+    with pytest.raises(ConfigError) as err:
+        validate.per_wheel(key, v, validate.positive)
+    assert key in str(err.value)
+
+
+@FAST
+@given(key=keys, minimum=st.integers(-5, 5), extra=st.integers(0, 10**6))
+def test_integer_accepts(key, minimum, extra):
+    assert validate.integer(key, minimum + extra, minimum) == minimum + extra
+
+
+@FAST
+@given(key=keys, minimum=st.integers(-5, 5),
+       v=st.one_of(st.floats(allow_nan=True), st.booleans(), st.text(max_size=3), st.none()))
+def test_integer_rejects_non_integers(key, minimum, v):
+    with pytest.raises(ConfigError) as err:
+        validate.integer(key, v, minimum)
+    assert err.value.key == key and key in str(err.value)
+
+
+@FAST
+@given(key=keys, minimum=st.integers(-5, 5), below=st.integers(1, 10**6))
+def test_integer_rejects_below_minimum(key, minimum, below):
+    with pytest.raises(ConfigError) as err:
+        validate.integer(key, minimum - below, minimum)
+    assert err.value.key == key and key in str(err.value) and str(minimum) in str(err.value)

@@ -1,0 +1,247 @@
+"""``ddmr report`` on the smoke sweep: tables, figures, links, partial sweeps, single run dirs, the CLI."""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from conftest import run_ddmr
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+SMOKE_CONTROLLERS = {"pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"}
+SCENARIOS = {"paper_1", "paper_2"}
+
+
+def _files(root: Path) -> dict[str, float]:
+    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def smoke_report(smoke_sweep_dir, tmp_path_factory):
+    """The report of a private copy of the smoke sweep, checking it writes only under its out dir."""
+    from ddmr_cli.report import build_report
+
+    sweep = tmp_path_factory.mktemp("report") / "sweep"
+    shutil.copytree(smoke_sweep_dir, sweep)
+    before = _files(sweep.parent)
+    out = build_report(sweep)
+    after = _files(sweep.parent)
+    changed = {f for f in after if before.get(f) != after[f]}
+    assert out == sweep / "report"
+    assert changed and all(f.startswith("sweep/report/") for f in changed), sorted(changed)[:10]
+    assert set(before) <= set(after)
+    return out
+
+
+def _read(path: Path):
+    import pandas as pd
+
+    return pd.read_csv(path)
+
+
+def _finite(frame, columns):
+    for col in columns:
+        vals = frame[col].astype(float)
+        assert all(math.isfinite(v) for v in vals), (col, list(vals))
+
+
+def test_report_layout(smoke_report):
+    assert (smoke_report / "report.md").is_file()
+    assert sorted(p.name for p in (smoke_report / "tables").glob("*.csv")) == sorted([
+        "jobs.csv", "table3_parameters.csv", "table4.csv", "verdicts.csv", "chattering.csv", "energy.csv",
+        "saturation.csv", "estimation.csv", "deviation_by_zone.csv", "deviation_by_phase.csv", "statistics.csv"])
+
+
+def test_table4_rows_columns_and_paper_numbers(smoke_report):
+    t4 = _read(smoke_report / "tables" / "table4.csv")
+    assert len(t4) == 10
+    assert set(zip(t4["controller"], t4["scenario"])) == {(c, s) for c in SMOKE_CONTROLLERS for s in SCENARIOS}
+    cols = ["deviation_mean", "deviation_sd", "e_x_mae", "e_y_mae", "e_theta_mae"]
+    assert {"runs", "diverged", *cols, *(f"paper_{c}" for c in cols), *(f"ratio_{c}" for c in cols)} <= set(t4)
+    _finite(t4, cols)
+    assert (t4["runs"] == 2).all() and (t4["diverged"] == 0).all()
+    s1 = t4[t4["scenario"] == "paper_1"].set_index("controller")
+    assert s1.loc["pid", "paper_deviation_mean"] == pytest.approx(0.0187)
+    assert s1.loc["smc_ndo_nno_text", "paper_row"] == s1.loc["smc_ndo_nno", "paper_row"] == "SMC-NDO-NN"
+    assert s1.loc["smc", "ratio_deviation_mean"] == pytest.approx(s1.loc["smc", "deviation_mean"] / 0.0052)
+    _finite(s1, [f"ratio_{c}" for c in cols])
+    s2 = t4[t4["scenario"] == "paper_2"]
+    assert s2["paper_deviation_mean"].isna().all()  # the paper's Table 4 is compared with scenario 1 only
+
+
+def test_further_tables(smoke_report):
+    tables = smoke_report / "tables"
+    for name, metrics in (("chattering.csv", ["chattering", "hf_fraction", "mean_voltage"]),
+                          ("energy.csv", ["energy_u2", "electrical_energy"]),
+                          ("saturation.csv", ["saturation_fraction", "saturated_time"]),
+                          ("estimation.csv", ["d_est_mae", "d_est_mae_ndo", "s_mae"])):
+        frame = _read(tables / name)
+        assert len(frame) == 10, name
+        _finite(frame, [f"{m}_mean" for m in metrics] + [f"{m}_sd" for m in metrics])
+    ch = _read(tables / "chattering.csv")
+    _finite(ch, ["u_right_p01", "u_right_p99"])
+    zones = _read(tables / "deviation_by_zone.csv")
+    assert set(zones["zone"]) == {"flat", "very_rough", "slightly_rough"}
+    assert len(zones) == 10 * 3
+    _finite(zones, ["deviation_mae_mean", "e_x_mae_mean", "chattering_mean"])
+    phases = _read(tables / "deviation_by_phase.csv")
+    assert set(phases.loc[phases["scenario"] == "paper_2", "phase"]) == {"terrain", "uncertainty", "both"}
+    assert len(phases) == 5 * 1 + 5 * 3
+    t3 = _read(tables / "table3_parameters.csv").set_index("controller")
+    assert set(t3.index) == SMOKE_CONTROLLERS
+    assert t3.loc["pid", "param_K_p"] == 5.0
+    assert (t3.loc["smc_ndo_nno", "param_gamma"], t3.loc["smc_ndo_nno", "param_sigma"]) == (50.0, 2.0)
+    assert (t3.loc["smc_ndo_nno_text", "param_gamma"], t3.loc["smc_ndo_nno_text", "param_sigma"]) == (2.0, 50.0)
+
+
+def test_verdicts_table(smoke_report):
+    v = _read(smoke_report / "tables" / "verdicts.csv")
+    assert set(v["claim"]) == {"ranking", "vs_smc_ndo", "vs_smc", "chattering", "estimation"}
+    assert set(v["scenario"]) == SCENARIOS
+    _finite(v, ["mean_a", "mean_b", "diff_ci_low", "diff_ci_high", "reduction", "p_value"])
+    assert (v["n_pairs"] == 2).all()
+    # two seeds cannot make any claim hold or fail: every verdict says so
+    assert all(str(x).startswith("inconclusive") for x in v["verdict"])
+    md = (smoke_report / "report.md").read_text(encoding="utf-8")
+    section = md.split("## Verdicts on the paper's claims", 1)[1].split("\n## ", 1)[0]
+    for title in ("Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO", "about 40 % lower", "over 60 % lower",
+                  "near-complete elimination of chattering", "Disturbance-estimation MAE"):
+        assert title in section
+
+
+def test_verdicts_are_reproducible(smoke_sweep_dir):
+    from ddmr_cli.report import data, verdicts
+
+    rows = [verdicts.rows(verdicts.evaluate(data.load(smoke_sweep_dir))) for _ in range(2)]
+    assert rows[0] == rows[1]
+
+
+def test_figures_are_valid_pngs(smoke_report):
+    figures = sorted((smoke_report / "figures").glob("*.png"))
+    names = {p.name for p in figures}
+    for scenario in SCENARIOS:
+        for stem in ("fig03_terrain", "fig04_trajectory", "fig05_deviation", "fig06_pose_errors",
+                     "fig07_disturbance", "fig08_voltage", "fig09_sliding", "deviation_spread"):
+            assert f"{scenario}_{stem}.png" in names
+    assert "paper_2_fig10_environment.png" in names and "paper_1_fig10_environment.png" not in names
+    import matplotlib.image
+
+    for path in figures:
+        raw = path.read_bytes()
+        assert raw[:8] == PNG_SIGNATURE and len(raw) > 1024, path.name
+        image = matplotlib.image.imread(path)
+        assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 200, path.name
+
+
+def test_report_links_resolve(smoke_report):
+    md = (smoke_report / "report.md").read_text(encoding="utf-8")
+    links = re.findall(r"\]\(([^)\s]+)\)", md)
+    images = re.findall(r"!\[[^\]]*\]\(([^)\s]+)\)", md)
+    assert len(images) == len(list((smoke_report / "figures").glob("*.png")))
+    assert any(link.startswith("tables/") for link in links)
+    for link in links:
+        assert (smoke_report / link).is_file(), link
+
+
+def test_report_states_configuration(smoke_report, smoke_sweep_dir):
+    md = (smoke_report / "report.md").read_text(encoding="utf-8")
+    sweep = smoke_report.parent
+    assert f"ddmr run -m +experiment=smoke hydra.sweep.dir={sweep}" in md
+    assert f"ddmr report {sweep}" in md
+    for text in ("simulation.dt | 0.005", "run.n_runs | 2", "Table 3 / eq. (25) reading", "text reading",
+                 "compared against scenario 1", "None: every job of the sweep is complete"):
+        assert text in md, text
+
+
+def test_partial_sweep(smoke_sweep_dir, tmp_path):
+    from ddmr_cli.report import build_report
+
+    sweep = tmp_path / "partial"
+    shutil.copytree(smoke_sweep_dir, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
+    (sweep / "controller=smc,scenario=paper_1" / "summary.json").unlink()   # killed mid-way
+    shutil.rmtree(sweep / "controller=smc_ndo,scenario=paper_2")            # never started
+    for job in ("controller=pid,scenario=paper_1", "controller=pid,scenario=paper_2"):
+        shutil.copy(smoke_sweep_dir / job / "series.npz", sweep / job / "series.npz")  # figures for some jobs
+    out = build_report(sweep, tmp_path / "out")
+    assert out == tmp_path / "out"
+    md = (out / "report.md").read_text(encoding="utf-8")
+    missing = md.split("## Missing or failed jobs", 1)[1].split("\n## ", 1)[0]
+    assert "**The report is partial**" in missing
+    assert "controller=smc,scenario=paper_1" in missing and "controller=smc_ndo,scenario=paper_2" in missing
+    jobs = _read(out / "tables" / "jobs.csv").set_index("job")
+    assert jobs.loc["controller=smc,scenario=paper_1", "status"] == "missing"
+    assert jobs.loc["controller=smc_ndo,scenario=paper_2", "status"] == "missing"
+    assert (jobs["status"] == "complete").sum() == 8
+    t4 = _read(out / "tables" / "table4.csv")
+    assert len(t4) == 8
+    # verdicts needing a missing controller are skipped with a note, the others still computed
+    assert "no complete smc job in paper_1" in md and "no complete smc_ndo job in paper_2" in md
+    v = _read(out / "tables" / "verdicts.csv")
+    assert not ((v["scenario"] == "paper_2") & (v["reference"] == "smc_ndo")).any()
+    assert ((v["scenario"] == "paper_1") & (v["claim"] == "vs_smc_ndo")).any()
+    # no time series common to every job: only the spread plots, with a note
+    assert sorted(p.name for p in (out / "figures").glob("*.png")) == ["paper_1_deviation_spread.png",
+                                                                       "paper_2_deviation_spread.png"]
+    assert "time-series figures skipped" in md
+    for link in re.findall(r"\]\(([^)\s]+)\)", md):
+        assert (out / link).is_file(), link
+    assert not (sweep / "report").exists()  # --out elsewhere: nothing written into the sweep
+
+
+def test_failed_job_is_listed(smoke_sweep_dir, tmp_path):
+    import json
+
+    from ddmr_cli.report import build_report
+
+    sweep = tmp_path / "failed"
+    shutil.copytree(smoke_sweep_dir, sweep, ignore=shutil.ignore_patterns("report", "series.npz", "plots"))
+    job = sweep / "controller=pid,scenario=paper_2"
+    summary = json.loads((job / "summary.json").read_text())
+    (job / "summary.json").write_text(json.dumps({**summary, "status": "failed",
+                                                  "error": "SimulationError: boom"}))
+    md = (build_report(sweep) / "report.md").read_text(encoding="utf-8")
+    missing = md.split("## Missing or failed jobs", 1)[1].split("\n## ", 1)[0]
+    assert "controller=pid,scenario=paper_2" in missing and "SimulationError: boom" in missing
+
+
+def test_single_run_dir(smoke_sweep_dir, tmp_path):
+    from ddmr_cli.report import build_report
+
+    run = tmp_path / "run"
+    shutil.copytree(smoke_sweep_dir / "controller=smc_ndo_nno,scenario=paper_2", run)
+    out = build_report(run)
+    md = (out / "report.md").read_text(encoding="utf-8")
+    assert "From the run dir" in md
+    assert f"hydra.run.dir={run}" in md and "ddmr run -m" not in md
+    t4 = _read(out / "tables" / "table4.csv")
+    assert list(t4["controller"]) == ["smc_ndo_nno"] and list(t4["scenario"]) == ["paper_2"]
+    assert "skipped" in md  # verdicts need other controllers
+    for link in re.findall(r"\]\(([^)\s]+)\)", md):
+        assert (out / link).is_file(), link
+    assert (out / "figures" / "paper_2_fig05_deviation.png").is_file()
+
+
+def test_errors(tmp_path):
+    from ddmr_cli.errors import DDMRError
+    from ddmr_cli.report import build_report
+
+    with pytest.raises(DDMRError, match="no such directory"):
+        build_report(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DDMRError, match="not a sweep or run dir"):
+        build_report(tmp_path / "empty")
+
+
+def test_cli(smoke_sweep_dir, tmp_path):
+    out = tmp_path / "cli_out"
+    proc = run_ddmr(["report", str(smoke_sweep_dir), "--out", str(out)], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert str(out) in proc.stdout
+    assert (out / "report.md").is_file()
+    proc = run_ddmr(["report", str(tmp_path / "missing")], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "no such directory" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
