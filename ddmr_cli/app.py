@@ -74,6 +74,15 @@ def run_job(cfg: DictConfig) -> dict:
     return summary
 
 
+def _in_sweep() -> bool:
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        return "MULTIRUN" in str(HydraConfig.get().mode)
+    except ValueError:  # not under Hydra (Python API)
+        return False
+
+
 def _names(cfg: DictConfig) -> tuple[str, str]:
     from .config.build import controller_name
 
@@ -85,8 +94,13 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
 
     from .simulation import simulate
 
+    from .kernel import set_threads
+
     sim = build_simulation(cfg)
     seeds = seeds_of(cfg)
+    # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
+    threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
+    set_threads(threads)
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
     result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress)
@@ -116,6 +130,7 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
         "simulated_time": result.duration,
         "dt": result.dt,
         "wall_time": result.wall_time,
+        "engine": result.engine,
         "files": files,
         "python": platform.python_version(),
     }

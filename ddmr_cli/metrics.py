@@ -1,8 +1,9 @@
 """Metrics of one run, computed as the run goes (MODEL.md section 7).
 
-The engine hands over the per-step signals in chunks (time-major arrays with the run axis second); the
-accumulator keeps only running sums per run, so memory does not grow with the duration. Every metric is
-reported for the whole run, for each terrain zone and for each scenario phase.
+The engine hands over the per-step signals in chunks (run-major buffers); :func:`accumulate` adds them, run by
+run and step by step in time order, to running sums per run for the whole run, each terrain zone and each
+scenario phase. Memory does not grow with the duration, and the rounding is the same whatever the batch size
+and chunk size. The metrics are built from the sums in :meth:`MetricAccumulator.finalize`.
 
 Chattering: total variation of the applied voltage per second (V/s), and the fraction of the variance of
 ``u`` that passes a 2nd-order Butterworth high-pass at ``hf_cutoff`` Hz (the "power above 10 Hz" of
@@ -13,13 +14,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-from scipy.signal import butter, sosfilt, sosfilt_zi
+import math
 
-#: Per-step sums kept per run and segment; the metrics are built from them in :meth:`finalize`.
+import numpy as np
+
+from .kernel import _jit
+
+#: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
 SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturated",
-        "abs_du", "u2", "power", "abs_dtilde", "abs_dtilde_ndo", "abs_s", "u", "u_hp2", "abs_u")
-_PER_WHEEL = {"abs_du", "u2", "power", "abs_dtilde", "abs_dtilde_ndo", "abs_s", "u", "u_hp2", "abs_u"}
+        "abs_du_R", "abs_du_L", "u2_R", "u2_L", "power_R", "power_L", "abs_dtilde_R", "abs_dtilde_L",
+        "abs_dtilde_ndo_R", "abs_dtilde_ndo_L", "abs_s_R", "abs_s_L", "u_R", "u_L", "u_hp2_R", "u_hp2_L",
+        "abs_u_R", "abs_u_L")
+N_SUMS = len(SUMS)
 
 #: Run metrics, in the order of the tables: name -> (unit, description).
 METRICS: dict[str, tuple[str, str]] = {
@@ -48,20 +54,9 @@ METRICS: dict[str, tuple[str, str]] = {
 SEGMENT_METRICS = tuple(m for m in METRICS if m not in ("deviation_max", "deviation_final"))
 
 
-#: Sums over time are taken in blocks of this many steps, aligned to the run's first step, then added in
-#: order: the rounding is then the same whatever the batch size and chunk size (chunks are whole blocks).
-BLOCK_STEPS = 256
-
-#: Column layout of the per-step quantities: name -> (first column, width).
-_COLUMNS: dict[str, tuple[int, int]] = {}
-for _name in SUMS:
-    _COLUMNS[_name] = (sum(w for _, w in _COLUMNS.values()), 2 if _name in _PER_WHEEL else 1)
-N_COLUMNS = sum(w for _, w in _COLUMNS.values())
-
-
 @dataclass
 class StepSignals:
-    """One chunk of per-step signals: time-major arrays, shape ``(steps, runs[, 2])``."""
+    """One chunk of per-step signals: run-major arrays, shape ``(runs, steps[, 2])``; ``t`` and ``phase`` (steps,)."""
 
     t: np.ndarray
     dev: np.ndarray
@@ -77,6 +72,74 @@ class StepSignals:
     d_hat_nn: np.ndarray
     zone: np.ndarray
     phase: np.ndarray
+
+
+def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """2nd-order Butterworth high-pass by the bilinear transform with pre-warping, as one biquad
+    ``[b0, b1, b2, 1, a1, a2]`` (what ``scipy.signal.butter(2, cutoff, 'highpass', fs=1/dt, output='sos')``
+    gives), and the direct-form-II-transposed state per unit input at steady state (DC gain 0: ``[-b0, b2]``).
+    A cutoff at or above Nyquist passes nothing."""
+    if cutoff >= 0.5 / dt:
+        return np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0]), np.zeros(2)
+    k = math.tan(math.pi * cutoff * dt)
+    norm = 1.0 / (1.0 + math.sqrt(2.0) * k + k * k)
+    b0 = norm
+    sos = np.array([b0, -2.0 * b0, b0, 1.0, 2.0 * (k * k - 1.0) * norm, (1.0 - math.sqrt(2.0) * k + k * k) * norm])
+    return sos, np.array([-b0, b0])
+
+
+@_jit
+def accumulate(sums, t, dev, e_x, e_y, e_th, u, u_cmd, w, s, d_true, d_ndo, d_nn, zone, phase, phase_base,
+               k_e, r_a, hp, hp_zi, hp_state, u_prev, started, dev_max, dev_final):
+    """Add a chunk of steps to ``sums[run, segment, column]`` (columns: :data:`SUMS`), run by run in time order.
+
+    ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]`` (direct form II transposed, as ``scipy.signal.sosfilt``),
+    ``hp_state[run, wheel, 2]`` its state, started at ``hp_zi * u`` on the first step (no transient);
+    ``u_prev`` the last voltage of the previous chunk for the total variation.
+    """
+    n_runs, n_steps = dev.shape[0], dev.shape[1]
+    q = np.empty(sums.shape[2])
+    for r in range(n_runs):
+        for j in range(n_steps):
+            if not started[r]:
+                for k in range(2):
+                    u_prev[r, k] = u[r, j, k]
+                    hp_state[r, k, 0] = hp_zi[0] * u[r, j, k]
+                    hp_state[r, k, 1] = hp_zi[1] * u[r, j, k]
+                started[r] = True
+            d = dev[r, j]
+            q[0] = 1.0
+            q[1] = d
+            q[2] = d * d
+            q[3] = t[j] * d
+            q[4] = abs(e_x[r, j])
+            q[5] = abs(e_y[r, j])
+            q[6] = abs(e_th[r, j])
+            q[7] = 1.0 if (u[r, j, 0] != u_cmd[r, j, 0] or u[r, j, 1] != u_cmd[r, j, 1]) else 0.0
+            for k in range(2):
+                uk = u[r, j, k]
+                q[8 + k] = abs(uk - u_prev[r, k])
+                u_prev[r, k] = uk
+                q[10 + k] = uk * uk
+                q[12 + k] = uk * (uk - k_e * w[r, j, k]) / r_a
+                q[14 + k] = abs(d_true[r, j, k] - d_ndo[r, j, k] - d_nn[r, j, k])
+                q[16 + k] = abs(d_true[r, j, k] - d_ndo[r, j, k])
+                q[18 + k] = abs(s[r, j, k])
+                q[20 + k] = uk
+                y = hp[0] * uk + hp_state[r, k, 0]
+                hp_state[r, k, 0] = hp[1] * uk - hp[4] * y + hp_state[r, k, 1]
+                hp_state[r, k, 1] = hp[2] * uk - hp[5] * y
+                q[22 + k] = y * y
+                q[24 + k] = abs(uk)
+            z = 1 + zone[r, j]
+            p = phase_base + phase[j]
+            for c in range(q.shape[0]):
+                sums[r, 0, c] += q[c]
+                sums[r, z, c] += q[c]
+                sums[r, p, c] += q[c]
+            if d > dev_max[r]:
+                dev_max[r] = d
+            dev_final[r] = d
 
 
 class MetricAccumulator:
@@ -99,92 +162,30 @@ class MetricAccumulator:
         self.n_runs, self.dt = n_runs, dt
         self.zone_names, self.phase_names = list(zone_names), list(phase_names)
         self.segments = ["total"] + [f"zone:{z}" for z in self.zone_names] + [f"phase:{p}" for p in self.phase_names]
-        self.k_e, self.r_a = back_emf_constant, armature_resistance
-        n_seg = len(self.segments)
-        self.n_zones, self.n_phases = len(self.zone_names), len(self.phase_names)
-        self.sums = np.zeros((n_runs, n_seg, N_COLUMNS))  # [run, segment, column]
-        self.dev_max = np.zeros(n_runs)
+        self.k_e, self.r_a = float(back_emf_constant), float(armature_resistance)
+        self.sums = np.zeros((n_runs, len(self.segments), N_SUMS))
+        self.dev_max = np.full(n_runs, -np.inf)
         self.dev_final = np.full(n_runs, np.nan)
-        self.u_prev: np.ndarray | None = None
-        nyquist = 0.5 / dt
+        self.u_prev = np.zeros((n_runs, 2))
+        self.started = np.zeros(n_runs, dtype=np.bool_)
         self.hf_cutoff = hf_cutoff
-        self.sos = butter(2, hf_cutoff, btype="highpass", fs=1.0 / dt, output="sos") if hf_cutoff < nyquist else None
-        self.hp_state: np.ndarray | None = None
-
-    def _high_pass(self, u: np.ndarray) -> np.ndarray:
-        if self.sos is None:
-            return np.zeros_like(u)
-        if self.hp_state is None:  # steady state for the first voltage: no start-up transient
-            zi = sosfilt_zi(self.sos)  # (sections, 2)
-            self.hp_state = zi[:, :, None, None] * u[0][None, None, :, :]
-        y, self.hp_state = sosfilt(self.sos, u, axis=0, zi=self.hp_state)
-        return y
+        self.hp, self.hp_zi = butterworth_highpass(hf_cutoff, dt)
+        self.hp_state = np.zeros((n_runs, 2, 2))
 
     def consume(self, sig: StepSignals) -> None:
         """Add one chunk of steps."""
-        u = sig.u
-        prev = u[:1] if self.u_prev is None else self.u_prev[None]
-        du = np.diff(u, axis=0, prepend=prev)
-        self.u_prev = u[-1].copy()
-        current = (u - self.k_e * sig.w) / self.r_a
-        d_hat = sig.d_hat_ndo + sig.d_hat_nn
-        quantities = {
-            "count": np.ones_like(sig.dev),
-            "dev": sig.dev,
-            "dev2": sig.dev**2,
-            "tdev": sig.t[:, None] * sig.dev,
-            "abs_ex": np.abs(sig.e_x),
-            "abs_ey": np.abs(sig.e_y),
-            "abs_eth": np.abs(sig.e_theta),
-            "saturated": np.any(u != sig.u_command, axis=-1),
-            "abs_du": np.abs(du),
-            "u2": u**2,
-            "power": u * current,
-            "abs_dtilde": np.abs(sig.d_true - d_hat),
-            "abs_dtilde_ndo": np.abs(sig.d_true - sig.d_hat_ndo),
-            "abs_s": np.abs(sig.s),
-            "u": u,
-            "u_hp2": self._high_pass(u) ** 2,
-            "abs_u": np.abs(u),
-        }
-        n, n_runs = sig.dev.shape
-        q = np.empty((n, n_runs, N_COLUMNS))
-        for key, value in quantities.items():
-            start, width = _COLUMNS[key]
-            q[:, :, start:start + width] = value if width == 2 else value[:, :, None]
-        for start in range(0, n, BLOCK_STEPS):
-            block = slice(start, start + BLOCK_STEPS)
-            self._add_block(q[block], sig.zone[block], sig.phase[block])
-        self.dev_max = np.fmax(self.dev_max, np.max(sig.dev, axis=0))
-        self.dev_final = sig.dev[-1].copy()
-
-    def _add_block(self, q: np.ndarray, zone: np.ndarray, phase: np.ndarray) -> None:
-        """Add one block of steps to the whole-run, zone and phase sums.
-
-        Each run's block is summed along its own contiguous time axis (the same rounding in any batch). Zones
-        follow the distance travelled, which never decreases, so a run's zone changes at most a few times: a
-        block inside one zone adds its sum to that zone; the rare block that crosses an edge is split by mask.
-        """
-        runs = np.arange(q.shape[1])
-        qt = np.ascontiguousarray(np.moveaxis(q, 0, -1))  # (runs, columns, steps)
-        block_sum = qt.sum(axis=-1)
-        self.sums[:, 0] += block_sum
-        z_first, z_last = zone.min(axis=0), zone.max(axis=0)
-        inside = z_first == z_last
-        self.sums[runs[inside], 1 + z_first[inside]] += block_sum[inside]
-        for r in runs[~inside]:
-            for z in range(z_first[r], z_last[r] + 1):
-                self.sums[r, 1 + z] += (qt[r] * (zone[:, r] == z)).sum(axis=-1)
-        base = 1 + self.n_zones
-        if phase[0] == phase[-1]:
-            self.sums[:, base + phase[0]] += block_sum
-        else:
-            for p in np.unique(phase):
-                self.sums[:, base + p] += (qt * (phase == p)).sum(axis=-1)
+        accumulate(self.sums, np.ascontiguousarray(sig.t), sig.dev, sig.e_x, sig.e_y, sig.e_theta, sig.u,
+                   sig.u_command, sig.w, sig.s, sig.d_true, sig.d_hat_ndo, sig.d_hat_nn, sig.zone,
+                   np.ascontiguousarray(sig.phase.astype(np.int64)), 1 + len(self.zone_names), self.k_e, self.r_a,
+                   self.hp, self.hp_zi, self.hp_state, self.u_prev, self.started, self.dev_max, self.dev_final)
 
     def finalize(self) -> dict[str, np.ndarray]:
         """Metrics per run and segment: ``{name: array (n_runs, n_segments)}`` (NaN where a segment is empty)."""
-        S = {key: self.sums[:, :, a:a + w] if w == 2 else self.sums[:, :, a] for key, (a, w) in _COLUMNS.items()}
+        col = {name: self.sums[:, :, i] for i, name in enumerate(SUMS)}
+        S = {name: col[name] for name in SUMS if not name.endswith(("_R", "_L"))}
+        for name in SUMS:
+            if name.endswith("_R"):
+                S[name[:-2]] = np.stack([col[name], col[name[:-2] + "_L"]], axis=-1)
         dt = self.dt
         with np.errstate(invalid="ignore", divide="ignore"):
             n = np.where(S["count"] > 0, S["count"], np.nan)
@@ -214,7 +215,8 @@ class MetricAccumulator:
                 "d_est_mae_ndo": (S["abs_dtilde_ndo"] / nw).mean(axis=-1),
                 "s_mae": (S["abs_s"] / nw).mean(axis=-1),
             }
-        total_only = {"deviation_max": self.dev_max, "deviation_final": self.dev_final}
+        total_only = {"deviation_max": np.where(np.isfinite(self.dev_max), self.dev_max, np.nan),
+                      "deviation_final": self.dev_final}
         for key, val in total_only.items():
             arr = np.full((self.n_runs, len(self.segments)), np.nan)
             arr[:, 0] = val

@@ -11,12 +11,25 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy.signal import lfilter
 
+from .kernel import _jit
 from .terrain import ou_coefficients
 
 CHANNELS = 3  # roughness right, roughness left, damping uncertainty
 CHUNK_BYTES = 48 * 2**20  # memory for one chunk of draws, whatever the batch size
+
+
+@_jit
+def ou_filter(xi, a, b, state, out):
+    """``out[r, j, c] = a[c] out[r, j-1, c] + b[c] xi[r, j, c]``, starting from ``state[r, c]``; updates ``state``."""
+    n_runs, n_steps, n_ch = xi.shape
+    for r in range(n_runs):
+        for c in range(n_ch):
+            y = state[r, c]
+            for j in range(n_steps):
+                y = b[c] * xi[r, j, c] + a[c] * y
+                out[r, j, c] = y
+            state[r, c] = y
 
 
 class OUStreams:
@@ -45,15 +58,11 @@ class OUStreams:
         self.chunk_steps = int(max(16, min(4096, CHUNK_BYTES // (8 * n_ch * max(n_runs, 1)))))
 
     def next_chunk(self, n_steps: int) -> np.ndarray:
-        """The next ``n_steps`` values, shape ``(n_steps, n_runs, channels)``."""
+        """The next ``n_steps`` values, run-major: shape ``(n_runs, n_steps, channels)``."""
         n_runs, n_ch = self.state.shape
         xi = np.empty((n_runs, n_steps, n_ch))
         for i, rng in enumerate(self.generators):
             rng.standard_normal(out=xi[i])
-        out = np.empty((n_steps, n_runs, n_ch))
-        for c in range(n_ch):
-            a, b = self.a[c], self.b[c]
-            path, _ = lfilter([b], [1.0, -a], xi[:, :, c], axis=1, zi=(a * self.state[:, c])[:, None])
-            out[:, :, c] = path.T
-        self.state = out[-1].copy()
+        out = np.empty((n_runs, n_steps, n_ch))
+        ou_filter(xi, self.a, self.b, self.state, out)
         return out

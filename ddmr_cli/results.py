@@ -51,6 +51,7 @@ class SimulationResult:
     dt: float = 1e-3
     duration: float = 0.0
     wall_time: float = 0.0
+    engine: str = "numpy"
 
     def metric(self, name: str, segment: str = "total") -> np.ndarray:
         """One metric for every run, in seed order."""

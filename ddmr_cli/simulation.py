@@ -6,11 +6,15 @@ alone or inside any batch. Per step: measure, run the outer loop and the wheel c
 ``[-U_max, U_max]``, hold ``u`` and the disturbance for the step, advance plant and pose (explicit Euler by
 default, RK4 as an option). A run whose deviation exceeds ``divergence_bound`` or turns NaN/inf is marked
 diverged with the time it happened; the others carry on unaffected.
+
+Two steppers advance the state chunk by chunk and fill the same buffers: :class:`NumpyStepper` (the
+specification: vectorised over runs, any :class:`WheelController`) and :class:`CompiledStepper`
+(:mod:`ddmr_cli.kernel`, numba, for the built-in controllers; about 20-50x faster). ``engine='auto'`` takes the
+compiled one when the controller has a kernel.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -20,7 +24,8 @@ import numpy as np
 from .controllers.base import WheelController
 from .errors import ConfigError
 from .kinematics import wrap_angle
-from .metrics import BLOCK_STEPS, MetricAccumulator, StepSignals
+from .metrics import MetricAccumulator, StepSignals
+from . import kernel
 from .noise import OUStreams
 from .outer_loop import Kanayama
 from .results import SERIES_CHANNELS, SimulationResult
@@ -30,10 +35,12 @@ from .terrain import Terrain
 from .trajectory import StraightLine, Trajectory
 
 INTEGRATORS = ("euler", "rk4")
+ENGINES = ("auto", "compiled", "numpy")
 #: bytes of per-step signals buffered per run and step (chunked, so memory stays bounded)
-_BYTES_PER_RUN_STEP = 8 * 40
+_BYTES_PER_RUN_STEP = 8 * (len(kernel.REC1) + 2 * len(kernel.REC2) + 1 + 3)
 CHUNK_BUDGET = 192 * 2**20
 MAX_CHUNK_STEPS = 4096
+MIN_CHUNK_STEPS = 64
 
 
 @dataclass
@@ -58,6 +65,8 @@ class Simulation:
         ``rest``: zero.
     divergence_bound : float
         A run whose deviation exceeds this [m] is marked diverged.
+    engine : {'auto', 'compiled', 'numpy'}
+        ``auto``: the compiled kernel when the controller has one, else numpy.
     """
 
     controller: WheelController
@@ -72,6 +81,7 @@ class Simulation:
     initial_pose: Sequence[float] = (0.0, 0.05, 0.05)
     initial_wheel_speeds: str | Sequence[float] = "reference"
     divergence_bound: float = 1.0
+    engine: str = "auto"
 
     @property
     def n_steps(self) -> int:
@@ -92,6 +102,182 @@ def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
     if arr.shape != (2,):
         raise ConfigError("simulation.initial_wheel_speeds", spec, "must be 'reference', 'rest' or [w_R, w_L]")
     return arr
+
+
+class _Model:
+    """Constants of the true plant (MODEL.md 1), kinematics (2), terrain and scenario (5), per batch."""
+
+    def __init__(self, sim: Simulation, n_runs: int) -> None:
+        robot, dt = sim.robot, float(sim.dt)
+        self.sim, self.n_runs, self.dt, self.n_steps = sim, n_runs, dt, sim.n_steps
+        self.L, self.R = robot.half_track, robot.wheel_radius
+        self.inv_inertia = WheelMatrix.of(robot.inverse_inertia)
+        self.damping, self.voltage_gain, self.u_max = robot.damping, robot.voltage_gain, robot.max_voltage
+        self.terrain, self.scenario, self.kin = sim.terrain, sim.scenario, sim.outer_loop
+        self.roughness_table = sim.terrain.roughness
+        self.roll_torque_table = robot.rolling_resistance_torque(sim.terrain.mu)
+        self.unc = sim.scenario.uncertainty
+        self.phase_of_step = sim.scenario.phase_index(np.arange(self.n_steps) * dt)
+        self.rough_on = np.array([float(p.roughness) for p in sim.scenario.phases])
+        self.unc_on = np.array([bool(p.uncertainty) for p in sim.scenario.phases])
+        self.ref = np.array([sim.trajectory.reference(k * dt) for k in range(self.n_steps)], dtype=float)
+        self.rk4 = sim.integrator == "rk4"
+        self.w0 = np.tile(_initial_wheel_speeds(sim), (n_runs, 1))
+        self.pose0 = np.tile(np.array([*map(float, sim.initial_pose), 0.0]), (n_runs, 1))  # x, y, theta, dist
+
+
+class NumpyStepper:
+    """The step loop vectorised over runs with numpy: the specification, for any WheelController."""
+
+    def __init__(self, model: _Model, controller: WheelController) -> None:
+        self.m, self.controller = model, controller
+        self.x, self.y, self.th, self.dist = (model.pose0[:, i].copy() for i in range(4))
+        self.w = model.w0.copy()
+        self.w_d_prev = None
+        controller.reset(self.w.copy())
+        self.zone0 = np.zeros(model.n_runs, dtype=np.intp)
+        self.wheel_sign = np.array([1.0, -1.0])  # w_d = (v_d + [1, -1] L omega_d) / R
+
+    def disturbance(self, w, b_scale, d_ext, roll_torque):
+        """The lumped disturbance ``d = w' - f_nom(w) - g_nom u`` (MODEL.md 5) of the true plant (6)-(8):
+        ``d = -J^-1 (B_nom (b - 1) w + tau_roll sign(w)) + d_ext``; rolling resistance opposes each wheel's
+        rotation and ``d_ext = -roughness n(t)`` is the roughness part."""
+        torque = np.sign(w) * roll_torque[:, None]
+        if b_scale is not None:
+            torque += (self.m.damping * (b_scale - 1.0))[:, None] * w
+        return d_ext - self.m.inv_inertia(torque)
+
+    def acceleration(self, w, u, d):
+        """The paper's (8): ``w' = J^-1 (K_u u - B_nom w) + d``."""
+        return self.m.inv_inertia(self.m.voltage_gain * u - self.m.damping * w) + d
+
+    def body_rates(self, w):
+        """Forward kinematics (1): ``(v, omega)``."""
+        return self.m.R * 0.5 * (w[:, 0] + w[:, 1]), (self.m.R / (2.0 * self.m.L)) * (w[:, 0] - w[:, 1])
+
+    def advance(self, k0, noise, rec1, rec2, rec_zone) -> None:
+        m, controller = self.m, self.controller
+        L, R, dt, u_max = m.L, m.R, m.dt, m.u_max
+        terrain, kin = m.terrain, m.kin
+        single_zone = len(terrain.zones) == 1
+        x, y, th, dist, w = self.x, self.y, self.th, self.dist, self.w
+        roughness_noise = -noise[:, :, :2]  # (runs, steps, 2)
+        damping_scale = 1.0 + np.clip(m.unc.std * noise[:, :, 2], m.unc.low, m.unc.high)
+        I = {name: i for i, name in enumerate(kernel.REC1)}
+        J = {name: i for i, name in enumerate(kernel.REC2)}
+        for j in range(noise.shape[1]):
+            k = k0 + j
+            x_r, y_r, th_r, v_r, omega_r = m.ref[k]
+            # measure: pose error in the robot frame (MODEL.md 2)
+            dx, dy = x_r - x, y_r - y
+            c, sn = np.cos(th), np.sin(th)
+            e_x = c * dx + sn * dy
+            e_y = c * dy - sn * dx
+            e_th = wrap_angle(th_r - th)
+            # outer loop (MODEL.md 3) and inverse kinematics (4); w_d' by backward difference (MODEL.md 4)
+            v_d, omega_d = kin.command(e_x, e_y, e_th, v_r, omega_r)
+            w_d = (v_d[:, None] + (L * omega_d)[:, None] * self.wheel_sign) * (1.0 / R)
+            w_d_dot = np.zeros_like(w_d) if self.w_d_prev is None else (w_d - self.w_d_prev) * (1.0 / dt)
+            self.w_d_prev = w_d
+            # wheel controller and saturation (MODEL.md 4)
+            u_cmd = controller.command(w, w_d, w_d_dot)
+            u = np.minimum(np.maximum(u_cmd, -u_max), u_max)
+            # disturbances of this step, held over it (MODEL.md 5)
+            p = m.phase_of_step[k]
+            zone = self.zone0 if single_zone else terrain.zone_index(dist)
+            rough, roll_torque = m.roughness_table[zone], m.roll_torque_table[zone]
+            if m.rough_on[p] != 1.0:
+                rough = rough * m.rough_on[p]
+            d_ext = roughness_noise[:, j] * rough[:, None]
+            b_scale = damping_scale[:, j] if m.unc_on[p] else None
+            d_true = self.disturbance(w, b_scale, d_ext, roll_torque)
+            w_dot = self.acceleration(w, u, d_true)
+            controller.update(w, u, u_cmd)
+            # record
+            r1, r2 = rec1[:, j], rec2[:, j]
+            r1[:, I["dev"]] = np.hypot(dx, dy)
+            r1[:, I["e_x"]], r1[:, I["e_y"]], r1[:, I["e_theta"]] = e_x, e_y, e_th
+            r1[:, I["x"]], r1[:, I["y"]], r1[:, I["theta"]], r1[:, I["distance"]] = x, y, th, dist
+            r1[:, I["roughness"]] = rough
+            r1[:, I["damping_scale"]] = 1.0 if b_scale is None else b_scale
+            r2[:, J["u"]], r2[:, J["u_command"]], r2[:, J["w"]], r2[:, J["w_d"]] = u, u_cmd, w, w_d
+            r2[:, J["s"]], r2[:, J["d_true"]] = controller.s, d_true
+            r2[:, J["d_hat_ndo"]], r2[:, J["d_hat_nn"]] = controller.d_hat_ndo, controller.d_hat_nn
+            rec_zone[:, j] = zone
+            # advance plant and pose (MODEL.md 4)
+            v, omega = self.body_rates(w)
+            if not m.rk4:  # explicit Euler
+                x = x + dt * (v * c)
+                y = y + dt * (v * sn)
+                th = th + dt * omega
+                dist = dist + dt * np.abs(v)
+                w = w + dt * w_dot
+            else:
+                x, y, th, dist, w = _rk4_step(
+                    x, y, th, dist, w, v, omega, w_dot, dt, self.body_rates,
+                    lambda w_: self.acceleration(w_, u, self.disturbance(w_, b_scale, d_ext, roll_torque)))
+        self.x, self.y, self.th, self.dist, self.w = x, y, th, dist, w
+
+
+class CompiledStepper:
+    """The same step loop compiled with numba (:func:`ddmr_cli.kernel.run_chunk`), one run at a time."""
+
+    def __init__(self, model: _Model, spec) -> None:
+        self.m = model
+        self.kind, self.params, self.centers, self.state = spec
+        self.pose = model.pose0.copy()
+        self.w = model.w0.copy()
+        self.w_d_prev = np.zeros_like(self.w)
+        jinv = model.inv_inertia
+        j_over_ku = WheelMatrix.of(model.sim.robot.inertia_matrix / model.voltage_gain)
+        unc = model.unc
+        consts = np.zeros(kernel.N_CONSTS)
+        for index, value in ((kernel.C_L, model.L), (kernel.C_R, model.R), (kernel.C_JINV_P, jinv.p),
+                             (kernel.C_JINV_Q, jinv.q), (kernel.C_DAMPING, model.damping),
+                             (kernel.C_KU, model.voltage_gain), (kernel.C_UMAX, model.u_max),
+                             (kernel.C_KX, model.kin.k_x), (kernel.C_KY, model.kin.k_y),
+                             (kernel.C_KTH, model.kin.k_theta), (kernel.C_DT, model.dt),
+                             (kernel.C_JKU_P, j_over_ku.p), (kernel.C_JKU_Q, j_over_ku.q),
+                             (kernel.C_UNC_STD, unc.std), (kernel.C_UNC_LOW, unc.low), (kernel.C_UNC_HIGH, unc.high)):
+            consts[index] = value
+        self.consts = consts
+        self.zone_edges = np.ascontiguousarray(model.terrain.inner_edges)
+        self.phase = np.ascontiguousarray(model.phase_of_step.astype(np.int64))
+
+    def advance(self, k0, noise, rec1, rec2, rec_zone) -> None:
+        m, n = self.m, noise.shape[1]
+        kernel.run_chunk(self.kind, self.params, self.state, self.centers, self.pose, self.w, self.w_d_prev, k0,
+                         m.ref[k0:k0 + n], noise, self.phase[k0:k0 + n], m.rough_on, m.unc_on, self.zone_edges,
+                         m.roughness_table, m.roll_torque_table, self.consts, m.rk4, rec1, rec2, rec_zone)
+
+
+def _kernel_applies(controller: WheelController) -> bool:
+    """True when the controller's compiled form describes it: the class that defines ``kernel_spec`` also
+    defines (or inherits) every step method, so a subclass overriding ``command`` runs on numpy."""
+    mro = type(controller).__mro__
+    owner = next((cls for cls in mro if "kernel_spec" in vars(cls)), None)
+    if owner is None:
+        return False
+    for name in ("bind", "reset", "command", "update"):
+        definer = next(cls for cls in mro if name in vars(cls))
+        if not issubclass(owner, definer):
+            return False
+    return True
+
+
+def _stepper(sim: Simulation, model: _Model):
+    """The stepper for ``sim.engine`` and its name."""
+    if sim.engine not in ENGINES:
+        raise ConfigError("simulation.engine", sim.engine, f"must be one of {', '.join(ENGINES)}")
+    controller = sim.controller.bind(NominalModel.from_robot(sim.robot), model.dt)
+    use_kernel = kernel.AVAILABLE and sim.engine != "numpy" and _kernel_applies(controller)
+    spec = controller.kernel_spec(model.w0.copy()) if use_kernel else None
+    if spec is None and sim.engine == "compiled":
+        why = "numba is not installed" if not kernel.AVAILABLE else f"{type(controller).__name__} has no kernel"
+        raise ConfigError("simulation.engine", sim.engine, f"not available: {why}")
+    if spec is not None:
+        return CompiledStepper(model, spec), "compiled"
+    return NumpyStepper(model, controller), "numpy"
 
 
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
@@ -118,145 +304,45 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     if sim.integrator not in INTEGRATORS:
         raise ConfigError("simulation.integrator", sim.integrator, f"must be one of {', '.join(INTEGRATORS)}")
     started = time.perf_counter()
-    robot, dt, n_steps, n_runs = sim.robot, float(sim.dt), sim.n_steps, len(seeds)
+    n_runs, n_steps, dt = len(seeds), sim.n_steps, float(sim.dt)
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
-
-    # constants of the true plant (MODEL.md 1) and the kinematics (MODEL.md 2)
-    L, R = robot.half_track, robot.wheel_radius
-    inv_inertia = WheelMatrix.of(robot.inverse_inertia)
-    damping, voltage_gain = robot.damping, robot.voltage_gain
-    u_max = robot.max_voltage
-    terrain, scenario, kin = sim.terrain, sim.scenario, sim.outer_loop
-    roughness_table = terrain.roughness
-    roll_torque_table = robot.rolling_resistance_torque(terrain.mu)
-    single_zone = len(terrain.zones) == 1
-    unc = scenario.uncertainty
-    phase_of_step = scenario.phase_index(np.arange(n_steps) * dt)
-    rough_on = [float(p.roughness) for p in scenario.phases]
-    unc_on = [bool(p.uncertainty) for p in scenario.phases]
-    ref = [tuple(map(float, sim.trajectory.reference(k * dt))) for k in range(n_steps)]
-    controller = sim.controller.bind(NominalModel.from_robot(robot), dt)
-    rk4 = sim.integrator == "rk4"
-    wheel_sign = np.array([1.0, -1.0])  # w_d = (v_d + [1, -1] L omega_d) / R
-
-    # state
-    x = np.full(n_runs, float(sim.initial_pose[0]))
-    y = np.full(n_runs, float(sim.initial_pose[1]))
-    th = np.full(n_runs, float(sim.initial_pose[2]))
-    w = np.tile(_initial_wheel_speeds(sim), (n_runs, 1))
-    dist = np.zeros(n_runs)
-    w_d_prev = None
-    controller.reset(w.copy())
-
-    streams = OUStreams(seeds, dt, [terrain.correlation_time] * 2 + [unc.correlation_time])
-    chunk = int(min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (_BYTES_PER_RUN_STEP * n_runs)))
-    chunk = max(BLOCK_STEPS, chunk // BLOCK_STEPS * BLOCK_STEPS)  # whole blocks: see metrics.BLOCK_STEPS
-    acc = MetricAccumulator(n_runs, dt, terrain.names, scenario.names, robot.back_emf_constant,
-                            robot.armature_resistance)
+    model = _Model(sim, n_runs)
+    stepper, engine = _stepper(sim, model)
+    streams = OUStreams(seeds, dt, [sim.terrain.correlation_time] * 2 + [sim.scenario.uncertainty.correlation_time])
+    chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (_BYTES_PER_RUN_STEP * n_runs))))
+    acc = MetricAccumulator(n_runs, dt, sim.terrain.names, sim.scenario.names, sim.robot.back_emf_constant,
+                            sim.robot.armature_resistance)
     diverged = np.zeros(n_runs, dtype=bool)
     divergence_time = np.full(n_runs, np.nan)
     series = {name: np.empty((len(keep_idx), n_steps)) for name in SERIES_CHANNELS} if keep_idx else {}
-    zone0 = np.zeros(n_runs, dtype=np.intp)
-    rough0, roll0 = roughness_table[zone0], roll_torque_table[zone0]
-
-    def disturbance(w_, b_scale_, d_ext_, roll_torque_):
-        """The lumped disturbance ``d = w' - f_nom(w) - g_nom u`` (MODEL.md 5) of the true plant (6)-(8):
-        ``d = -J^-1 (B_nom (b - 1) w + tau_roll) + d_ext``; rolling resistance opposes each wheel's rotation and
-        ``d_ext = -roughness n(t)`` is the roughness part."""
-        torque = np.sign(w_) * roll_torque_[:, None]
-        if b_scale_ is not None:
-            torque += (damping * (b_scale_ - 1.0))[:, None] * w_
-        return d_ext_ - inv_inertia(torque)
-
-    def wheel_acceleration(w_, u_, d_):
-        """The paper's (8): ``w' = J^-1 (K_u u - B_nom w) + d``."""
-        return inv_inertia(voltage_gain * u_ - damping * w_) + d_
-
-    def body_rates(w_):
-        """Forward kinematics (1): ``(v, omega)``."""
-        return R * 0.5 * (w_[:, 0] + w_[:, 1]), (R / (2.0 * L)) * (w_[:, 0] - w_[:, 1])
-
+    I = {name: i for i, name in enumerate(kernel.REC1)}
+    J = {name: i for i, name in enumerate(kernel.REC2)}
     with np.errstate(all="ignore"):
         k0 = 0
         while k0 < n_steps:
             n = min(chunk, n_steps - k0)
-            noise = streams.next_chunk(n)  # (n, runs, 3): roughness R, roughness L, uncertainty
-            roughness_noise = -noise[:, :, :2]
-            damping_scale = 1.0 + np.clip(unc.std * noise[:, :, 2], unc.low, unc.high)
-            rec = {key: np.empty((n, n_runs)) for key in _RECORD_1}
-            rec.update({key: np.empty((n, n_runs, 2)) for key in _RECORD_2})
-            if keep_idx:
-                rec.update({key: np.empty((n, n_runs)) for key in _SERIES_ONLY_1})
-                rec["w_d"] = np.empty((n, n_runs, 2))
-            zone_buf = np.empty((n, n_runs), dtype=np.intp)
-            for j in range(n):
-                k = k0 + j
-                x_r, y_r, th_r, v_r, omega_r = ref[k]
-                # measure: pose error in the robot frame (MODEL.md 2)
-                dx, dy = x_r - x, y_r - y
-                c, sn = np.cos(th), np.sin(th)
-                e_x = c * dx + sn * dy
-                e_y = c * dy - sn * dx
-                e_th = wrap_angle(th_r - th)
-                # outer loop (MODEL.md 3) and inverse kinematics (4); w_d' by backward difference (MODEL.md 4)
-                v_d, omega_d = kin.command(e_x, e_y, e_th, v_r, omega_r)
-                w_d = (v_d[:, None] + (L * omega_d)[:, None] * wheel_sign) * (1.0 / R)
-                w_d_dot = np.zeros_like(w_d) if w_d_prev is None else (w_d - w_d_prev) * (1.0 / dt)
-                w_d_prev = w_d
-                # wheel controller and saturation (MODEL.md 4)
-                u_cmd = controller.command(w, w_d, w_d_dot)
-                u = np.minimum(np.maximum(u_cmd, -u_max), u_max)
-                # disturbances of this step, held over it (MODEL.md 5)
-                p = phase_of_step[k]
-                if single_zone:
-                    zone, rough, roll_torque = zone0, rough0, roll0
-                else:
-                    zone = terrain.zone_index(dist)
-                    rough, roll_torque = roughness_table[zone], roll_torque_table[zone]
-                if rough_on[p] != 1.0:
-                    rough = rough * rough_on[p]
-                d_ext = roughness_noise[j] * rough[:, None]
-                b_scale = damping_scale[j] if unc_on[p] else None
-                d_true = disturbance(w, b_scale, d_ext, roll_torque)
-                w_dot = wheel_acceleration(w, u, d_true)
-                controller.update(w, u, u_cmd)
-                # record
-                rec["dev"][j] = np.hypot(dx, dy)
-                rec["e_x"][j], rec["e_y"][j], rec["e_theta"][j] = e_x, e_y, e_th
-                rec["u"][j], rec["u_command"][j], rec["w"][j] = u, u_cmd, w
-                rec["s"][j], rec["d_true"][j] = controller.s, d_true
-                rec["d_hat_ndo"][j], rec["d_hat_nn"][j] = controller.d_hat_ndo, controller.d_hat_nn
-                zone_buf[j] = zone
-                if keep_idx:
-                    rec["x"][j], rec["y"][j], rec["theta"][j], rec["distance"][j] = x, y, th, dist
-                    rec["roughness"][j], rec["w_d"][j] = rough, w_d
-                    rec["damping_scale"][j] = 1.0 if b_scale is None else b_scale
-                # advance plant and pose (MODEL.md 4)
-                v, omega = body_rates(w)
-                if not rk4:  # explicit Euler
-                    x = x + dt * (v * c)
-                    y = y + dt * (v * sn)
-                    th = th + dt * omega
-                    dist = dist + dt * np.abs(v)
-                    w = w + dt * w_dot
-                else:
-                    x, y, th, dist, w = _rk4_step(
-                        x, y, th, dist, w, v, omega, w_dot, dt, body_rates,
-                        lambda w_: wheel_acceleration(w_, u, disturbance(w_, b_scale, d_ext, roll_torque)))
+            noise = streams.next_chunk(n)  # (runs, n, 3): roughness R, roughness L, uncertainty
+            rec1 = np.empty((n_runs, n, len(kernel.REC1)))
+            rec2 = np.empty((n_runs, n, len(kernel.REC2), 2))
+            rec_zone = np.empty((n_runs, n), dtype=np.intp)
+            stepper.advance(k0, noise, rec1, rec2, rec_zone)
             t = (k0 + np.arange(n)) * dt
+            dev = rec1[:, :, I["dev"]]
             # divergence: first step of each run whose deviation is over the bound or not finite
-            bad = ~(rec["dev"] <= sim.divergence_bound)
-            newly = bad.any(axis=0) & ~diverged
+            bad = ~(dev <= sim.divergence_bound)
+            newly = bad.any(axis=1) & ~diverged
             if newly.any():
-                first = np.argmax(bad, axis=0)
+                first = np.argmax(bad, axis=1)
                 divergence_time[newly] = t[first[newly]]
                 diverged |= newly
-            acc.consume(StepSignals(t=t, dev=rec["dev"], e_x=rec["e_x"], e_y=rec["e_y"], e_theta=rec["e_theta"],
-                                    u=rec["u"], u_command=rec["u_command"], w=rec["w"], s=rec["s"],
-                                    d_true=rec["d_true"], d_hat_ndo=rec["d_hat_ndo"], d_hat_nn=rec["d_hat_nn"],
-                                    zone=zone_buf, phase=phase_of_step[k0:k0 + n]))
+            acc.consume(StepSignals(t=t, dev=dev, e_x=rec1[:, :, I["e_x"]], e_y=rec1[:, :, I["e_y"]],
+                                    e_theta=rec1[:, :, I["e_theta"]], u=rec2[:, :, J["u"]],
+                                    u_command=rec2[:, :, J["u_command"]], w=rec2[:, :, J["w"]],
+                                    s=rec2[:, :, J["s"]], d_true=rec2[:, :, J["d_true"]],
+                                    d_hat_ndo=rec2[:, :, J["d_hat_ndo"]], d_hat_nn=rec2[:, :, J["d_hat_nn"]],
+                                    zone=rec_zone, phase=model.phase_of_step[k0:k0 + n]))
             if keep_idx:
-                _record_series(series, rec, zone_buf, ref[k0:k0 + n], t, keep_idx, k0)
+                _record_series(series, rec1, rec2, rec_zone, model.ref[k0:k0 + n], t, keep_idx, k0)
             k0 += n
             if progress is not None:
                 progress(k0, n_steps)
@@ -266,16 +352,11 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
         arr[diverged] = np.nan
     return SimulationResult(
         seeds=seeds, controller=getattr(sim.controller, "name", type(sim.controller).__name__),
-        scenario=scenario.name, segments=acc.segments, metrics=metrics, diverged=diverged,
+        scenario=sim.scenario.name, segments=acc.segments, metrics=metrics, diverged=diverged,
         divergence_time=divergence_time, series={seeds[i]: {k: v[n_i] for k, v in series.items()}
                                                  for n_i, i in enumerate(keep_idx)},
-        dt=dt, duration=n_steps * dt, wall_time=time.perf_counter() - started,
+        dt=dt, duration=n_steps * dt, wall_time=time.perf_counter() - started, engine=engine,
     )
-
-
-_RECORD_1 = ("dev", "e_x", "e_y", "e_theta")
-_RECORD_2 = ("u", "u_command", "w", "s", "d_true", "d_hat_ndo", "d_hat_nn")
-_SERIES_ONLY_1 = ("x", "y", "theta", "distance", "roughness", "damping_scale")
 
 
 def _rk4_step(x, y, th, dist, w, v1, om1, a1, dt, body_rates, accel):
@@ -297,16 +378,17 @@ def _rk4_step(x, y, th, dist, w, v1, om1, a1, dt, body_rates, accel):
     return x, y, th + sixth * (om1 + 2.0 * om2 + 2.0 * om3 + om4), dist, w + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
 
 
-def _record_series(series, rec, zone_buf, ref, t, keep_idx, k0):
+def _record_series(series, rec1, rec2, rec_zone, ref, t, keep_idx, k0):
     n = len(t)
     sl = slice(k0, k0 + n)
-    ref = np.asarray(ref)
     series["t"][:, sl] = t
     for name, col in (("x_ref", 0), ("y_ref", 1), ("theta_ref", 2)):
         series[name][:, sl] = ref[:, col]
-    for name in ("x", "y", "theta", "e_x", "e_y", "e_theta", "dev", "distance", "roughness", "damping_scale"):
-        series["deviation" if name == "dev" else name][:, sl] = rec[name][:, keep_idx].T
-    for name in ("w", "w_d", "u", "s", "d_true", "d_hat_ndo", "d_hat_nn"):
+    for i, name in enumerate(kernel.REC1):
+        series["deviation" if name == "dev" else name][:, sl] = rec1[keep_idx, :, i]
+    for i, name in enumerate(kernel.REC2):
+        if name == "u_command":
+            continue
         for wheel, suffix in ((0, "right"), (1, "left")):
-            series[f"{name}_{suffix}"][:, sl] = rec[name][:, keep_idx, wheel].T
-    series["zone"][:, sl] = zone_buf[:, keep_idx].T
+            series[f"{name}_{suffix}"][:, sl] = rec2[keep_idx, :, i, wheel]
+    series["zone"][:, sl] = rec_zone[keep_idx]

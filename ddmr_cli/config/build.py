@@ -19,7 +19,7 @@ from ..terrain import Terrain, TerrainZone
 ALLOWED_TARGET_PREFIX = "ddmr_cli."
 
 #: Keys that do not change the numbers (left out of the config hash used to resume sweeps).
-NON_RESULT_KEYS = ("run.plots", "run.progress", "experiment_name", "cluster")
+NON_RESULT_KEYS = ("run.plots", "run.progress", "run.threads", "experiment_name", "cluster")
 
 
 def _check_targets(node: Any, path: str) -> None:
@@ -82,6 +82,7 @@ def build_simulation(cfg: DictConfig) -> Simulation:
         initial_pose=tuple(float(v) for v in sim_cfg.initial_pose),
         initial_wheel_speeds=wheel if isinstance(wheel, str) else tuple(float(v) for v in wheel),
         divergence_bound=float(sim_cfg.divergence_bound),
+        engine=str(sim_cfg.engine),
     )
 
 

@@ -150,6 +150,7 @@ class SimulationConfig:
     initial_pose: List[float] = field(default_factory=lambda: [0.0, 0.05, 0.05])
     initial_wheel_speeds: Any = "reference"
     divergence_bound: float = 1.0
+    engine: str = "auto"
 
 
 @dataclass
@@ -159,6 +160,7 @@ class RunConfig:
     keep_series: List[int] = field(default_factory=lambda: [0])
     plots: bool = True
     progress: bool = True
+    threads: int = 0
 
 
 @dataclass

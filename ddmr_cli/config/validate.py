@@ -16,6 +16,7 @@ from ..errors import ConfigError
 from .build import _check_targets
 
 INTEGRATORS = ("euler", "rk4")
+ENGINES = ("auto", "compiled", "numpy")
 SURFACES = ("proportional", "integral")
 SWITCHINGS = ("sign", "sat", "tanh")
 #: Largest stable dt * rate of a first-order mode under the step (explicit Euler: 2, RK4: 2.78)
@@ -150,6 +151,12 @@ def validate_trajectory(cfg: DictConfig) -> None:
             positive(f"trajectory.{key}", cfg[key])
 
 
+def _pd_spectral_radius(dt_g_kp: float, g_kd: float) -> float:
+    """Largest |root| of the sampled wheel-speed loop under PD with a backward-difference derivative:
+    ``e_k+1 = (1 - dt g K_p - g K_d) e_k + g K_d e_k-1`` (the integral term is slow and left out)."""
+    return float(np.max(np.abs(np.roots([1.0, -(1.0 - dt_g_kp - g_kd), -g_kd]))))
+
+
 def validate_step(cfg: DictConfig) -> None:
     """dt small enough for the integrator and the fastest loop (plant, observer, sliding surface, PID)."""
     from ..robot import Robot
@@ -171,12 +178,18 @@ def validate_step(cfg: DictConfig) -> None:
             + np.max(per_wheel("controller.switching_gain", ctrl.switching_gain)) / float(ctrl.boundary_layer))
         if ctrl.get("ndo") is not None:
             rates["controller.ndo.gain"] = float(np.max(per_wheel("controller.ndo.gain", ctrl.ndo.gain, positive)))
-    elif kind == "PID":
-        rates["controller.kp (times g)"] = float(np.max(per_wheel("controller.kp", ctrl.kp))) * g_max
     for what, rate in rates.items():
         if dt * rate >= limit:
             raise ConfigError("simulation.dt", sim.dt,
                               f"must be < {limit / rate:.3g} s for {sim.integrator} with {what} = {rate:.3g} 1/s")
+    if kind == "PID":
+        kp = float(np.max(per_wheel("controller.kp", ctrl.kp)))
+        kd = float(np.max(per_wheel("controller.kd", ctrl.kd)))
+        if _pd_spectral_radius(dt * g_max * kp, g_max * kd) >= 1.0:
+            stable = [h for h in np.geomspace(dt, dt * 1e-3, 61) if _pd_spectral_radius(h * g_max * kp, g_max * kd) < 1]
+            bound = f"must be < {stable[0]:.3g} s" if stable else "has no stable value"
+            raise ConfigError("simulation.dt", sim.dt, f"{bound}: the sampled PD loop (controller.kp={kp:g}, "
+                                                       f"controller.kd={kd:g}) is unstable at this step")
 
 
 def validate_config(cfg: DictConfig) -> None:
@@ -206,9 +219,11 @@ def validate_config(cfg: DictConfig) -> None:
     else:
         per_wheel("simulation.initial_wheel_speeds", wheel, finite)
     positive("simulation.divergence_bound", sim.divergence_bound)
+    one_of("simulation.engine", sim.engine, ENGINES)
     validate_step(cfg)
     run = cfg.run
     integer("run.n_runs", run.n_runs, 1)
     integer("run.base_seed", run.base_seed, 0)
+    integer("run.threads", run.threads, 0)
     for i, seed in enumerate(run.keep_series):
         integer(f"run.keep_series[{i}]", seed, 0)

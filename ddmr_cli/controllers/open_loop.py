@@ -25,5 +25,11 @@ class OpenLoop(WheelController):
         self.s = w_d - w
         return np.broadcast_to(self.voltage, w.shape).copy()
 
+    def kernel_spec(self, w0):
+        """The compiled form (:mod:`ddmr_cli.kernel`)."""
+        from .. import kernel
+
+        return kernel.OPEN_LOOP, self.voltage.copy(), np.zeros(0), np.zeros((w0.shape[0], 1))
+
     def parameters(self):
         return {"voltage": compact(self.voltage)}

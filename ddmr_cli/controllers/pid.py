@@ -49,6 +49,13 @@ class PID(WheelController):
             e = np.where(winding_up, 0.0, e)
         self.integral = self.integral + self.dt * e
 
+    def kernel_spec(self, w0):
+        """The compiled form (:mod:`ddmr_cli.kernel`): kind, parameters, centres, state (integral, e_prev)."""
+        from .. import kernel
+
+        params = np.concatenate([self.kp, self.ki, self.kd, [float(self.anti_windup)]])
+        return kernel.PID_KIND, params, np.zeros(0), np.zeros((w0.shape[0], 4))
+
     def parameters(self):
         return {"K_p": compact(self.kp), "K_i": compact(self.ki), "K_d": compact(self.kd),
                 "anti_windup": self.anti_windup}

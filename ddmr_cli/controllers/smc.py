@@ -102,6 +102,27 @@ class SMC(WheelController):
         for obs in self.observers:
             obs.update(w, u_applied, self.s)
 
+    def kernel_spec(self, w0):
+        """The compiled form (:mod:`ddmr_cli.kernel`): kind, parameters, RBF centres, and the state
+        ``[int e (2), z (2), W^T (2 n)]`` with ``z(0) = -Gamma w(0)`` and ``W(0) = 0``."""
+        from .. import kernel
+
+        if (self.ndo is not None and type(self.ndo) is not NonlinearDisturbanceObserver) or (
+                self.nn is not None and type(self.nn) is not RBFNetworkObserver):
+            return None  # a custom observer: the numpy engine runs it
+        switching = {"sign": kernel.SWITCH_SIGN, "sat": kernel.SWITCH_SAT, "tanh": kernel.SWITCH_TANH}[self.switching]
+        ndo_gain = self.ndo.gain if self.ndo is not None else np.zeros(2)
+        nn = self.nn
+        params = np.concatenate([
+            self.lam, self.switching_gain, [self.boundary_layer, float(self.surface == "integral"), switching,
+                                            float(self.ndo is not None)], ndo_gain,
+            [float(nn is not None), nn.n_neurons if nn else 0, nn.width if nn else 1.0],
+            nn.learning_rate if nn else np.zeros(2)])
+        centers = nn.centers.copy() if nn is not None else np.zeros(0)
+        state = np.zeros((w0.shape[0], 4 + 2 * centers.size))
+        state[:, 2:4] = -ndo_gain * w0
+        return kernel.SMC_KIND, params, centers, state
+
     def parameters(self):
         params = {"lambda": compact(self.lam), "K": compact(self.switching_gain),
                   "Phi": self.boundary_layer, "surface": self.surface, "switching": self.switching}

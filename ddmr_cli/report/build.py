@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import shlex
-import time
 from pathlib import Path
 
 import numpy as np
@@ -309,7 +308,6 @@ class Report:
         self.add("", "Units of every metric: " + "; ".join(f"{m} [{u}]" for m, (u, _) in METRICS.items()) + ".", "")
 
     def build(self) -> Path:
-        started = time.perf_counter()
         stats = T.stats_frame(self.data)
         self.header()
         self.configuration()
@@ -323,7 +321,6 @@ class Report:
         self.figures()
         self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
         self.files()
-        self.add(f"_Report built in {time.perf_counter() - started:.1f} s._", "")
         io.write_text(self.out / "report.md", "\n".join(self.md))
         return self.out
 

@@ -167,8 +167,9 @@ class ScenarioFigures:
         s = self._s(self.ref)
         dist = s.get("distance", s["x"])
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
-        ax1.plot(dist, np.maximum(s["roughness"], 1e-3), color="0.2", lw=1.2, drawstyle="steps-post")
-        ax1.set_yscale("log")
+        ax1.plot(dist, s["roughness"], color="0.2", lw=1.2, drawstyle="steps-post")
+        ax1.set_yscale("symlog", linthresh=0.1)  # log above 0.1, linear down to 0 (roughness switched off)
+        ax1.set_ylim(bottom=0)
         ax1.set(ylabel="roughness amplitude [rad/s²]",
                 title=self._title(f"Fig. 3: terrain along the path (disturbance seen by {self.ref.label})"))
         _line(ax2, dist, s["d_true_right"], color="0.35", lw=0.6, label="true d, right wheel")
@@ -186,7 +187,8 @@ class ScenarioFigures:
         self._save(fig, "fig03_terrain", "Terrain roughness along the path (paper Fig. 3)",
                    f"Roughness amplitude per terrain zone (zone boundaries dashed) and the resulting lumped "
                    f"disturbance d on both wheels vs distance travelled (seed {self.seed}, {self.ref.label} run)."
-                   + (" The scenario's phases switch the roughness off in places (see Fig. 10)."
+                   + (" The scenario's phases switch the roughness off in places and add the damping uncertainty to d "
+                      "(see Fig. 10)."
                       if self._phases() else ""))
 
     def fig_trajectory(self, plt):
@@ -291,6 +293,7 @@ class ScenarioFigures:
             ax.set(xlabel="t [s]", ylabel="u_R [V]")
             ax.grid(alpha=0.3)
         self._decorate_time(ax1, labels=True)
+        clipped = self._robust_ylim(ax1, [self._s(j)["u_right"] for j in self.jobs], self._s(self.ref)["t"])
         ax1.axvspan(t0, t1, color="gold", alpha=0.35, zorder=0)
         ax1.set_title(self._title("Figs. 8/13: right-wheel control voltage"))
         _legend(ax1)
@@ -298,7 +301,8 @@ class ScenarioFigures:
         ax2.set_xlim(t0, t1)
         self._save(fig, "fig08_voltage", "Right-wheel control voltage with a zoom (paper Figs. 8 and 13)",
                    "Applied (saturated) voltage of the right wheel; bottom: full-resolution zoom into the roughest "
-                   "stretch.")
+                   "stretch." + (" The top panel's y range fits t ≥ 1 s; the start-up transient is off-scale."
+                                 if clipped else ""))
 
     def fig_sliding(self, plt):
         jobs = [j for j in self.jobs if any(k in (j.summary.get("parameters") or {}) for k in SMC_FAMILY_KEYS)]
@@ -415,13 +419,14 @@ def _style(plt) -> None:
 
 
 def workers(n_tasks: int) -> int:
-    """Figure processes: forked (so they share the loaded data), at most 4, one when fork is unavailable;
-    ``DDMR_REPORT_WORKERS`` overrides."""
+    """Figure processes: forked on Linux (so they share the loaded data), at most 4, else one;
+    ``DDMR_REPORT_WORKERS`` overrides the count."""
     import multiprocessing
     import os
+    import sys
 
-    if "fork" not in multiprocessing.get_all_start_methods():
-        return 1
+    if not sys.platform.startswith("linux") or "fork" not in multiprocessing.get_all_start_methods():
+        return 1  # fork is unsafe on macOS and absent on Windows
     env = os.environ.get("DDMR_REPORT_WORKERS", "")
     n = int(env) if env.isdigit() and int(env) > 0 else min(os.cpu_count() or 1, 4)
     return max(1, min(n, n_tasks))
