@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import platform
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -74,6 +75,12 @@ def run_job(cfg: DictConfig) -> dict:
     return summary
 
 
+def _import_plotting() -> None:
+    from .plots import pyplot
+
+    pyplot()
+
+
 def _in_sweep() -> bool:
     try:
         from hydra.core.hydra_config import HydraConfig
@@ -96,6 +103,9 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
 
     from .kernel import set_threads
 
+    if cfg.run.plots and cfg.run.keep_series:  # import matplotlib while the (GIL-free) engine runs
+        plotting = threading.Thread(target=_import_plotting, daemon=True)
+        plotting.start()
     sim = build_simulation(cfg)
     seeds = seeds_of(cfg)
     # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
@@ -105,8 +115,8 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
     result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress)
     io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
-    io.write_csv(out / io.METRICS_CSV, result.to_pandas())
-    io.write_csv(out / io.SEGMENTS_CSV, result.to_pandas(segments=True))
+    io.write_csv(out / io.METRICS_CSV, result.rows())
+    io.write_csv(out / io.SEGMENTS_CSV, result.rows(segments=True))
     files = [io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV]
     if result.series:
         io.write_series(out / io.SERIES, result.series)

@@ -59,6 +59,18 @@ def write_json(path: Path, data: Any) -> Path:
 
 
 def write_csv(path: Path, frame) -> Path:
+    """A pandas DataFrame, or a list of dicts with the same keys (written with the csv module, no pandas)."""
+    if isinstance(frame, list):
+        import csv
+
+        def _write(tmp: str) -> None:
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
+                writer = csv.DictWriter(fh, fieldnames=list(frame[0]) if frame else [])
+                writer.writeheader()
+                writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in row.items()}
+                                 for row in frame)
+
+        return atomic_write(path, _write)
     return atomic_write(path, lambda tmp: frame.to_csv(tmp, index=False))
 
 

@@ -50,12 +50,13 @@ def set_threads(n: int) -> int:
 
 
 def _jit(fn):
-    return njit(cache=True)(fn) if AVAILABLE else fn
+    """Compiled, cached on disk, and releasing the GIL (other Python threads go on meanwhile)."""
+    return njit(cache=True, nogil=True)(fn) if AVAILABLE else fn
 
 
 def _jit_parallel(fn):
     """Compiled with the runs spread over threads (``prange``); each run stays on one thread, in order."""
-    return njit(cache=True, parallel=True)(fn) if AVAILABLE else fn
+    return njit(cache=True, nogil=True, parallel=True)(fn) if AVAILABLE else fn
 
 
 @_jit

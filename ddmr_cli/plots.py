@@ -39,12 +39,29 @@ def pyplot():
     return plt
 
 
-def save_figure(fig, path: Path) -> Path:
-    """Save a figure atomically as PNG and close it."""
+def save_figure(fig, path: Path, tight: bool = True) -> Path:
+    """Save a figure atomically as PNG and close it (laid out once, drawn once)."""
     plt = pyplot()
-    atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight"))
+    if tight:
+        fig.tight_layout()
+    atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=100))
     plt.close(fig)
     return Path(path)
+
+
+def envelope(x: np.ndarray, y: np.ndarray, max_points: int = 4000) -> tuple[np.ndarray, np.ndarray]:
+    """At most about ``max_points`` points of ``(x, y)`` that keep every bucket's minimum and maximum, so a
+    decimated plot of a chattering signal shows its full amplitude."""
+    n = len(y)
+    if n <= max_points:
+        return x, y
+    per = int(np.ceil(2 * n / max_points))
+    m = n // per * per
+    block = y[:m].reshape(-1, per)
+    base = np.arange(0, m, per)
+    lo, hi = base + block.argmin(axis=1), base + block.argmax(axis=1)
+    idx = np.sort(np.concatenate([lo, hi, np.arange(m, n)]))
+    return x[idx], y[idx]
 
 
 def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, seed: int, out_dir: Path) -> list[Path]:
@@ -57,39 +74,43 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     paths = []
 
     fig, ax = plt.subplots(figsize=(8, 3.5))
-    ax.plot(series["x_ref"], series["y_ref"], "k--", lw=1, label="reference")
-    ax.plot(series["x"], series["y"], color=color, lw=1.2, label=label_of(controller))
+    ax.plot(*envelope(series["x_ref"], series["y_ref"]), "k--", lw=1, label="reference")
+    ax.plot(*envelope(series["x"], series["y"]), color=color, lw=1.2, label=label_of(controller))
     ax.set(xlabel="x [m]", ylabel="y [m]", title=f"Trajectory: {title}")
     ax.legend(loc="best")
     ax.grid(alpha=0.3)
-    paths.append(save_figure(fig, out_dir / "trajectory.png"))
+    fig.subplots_adjust(left=0.1, right=0.98, bottom=0.14, top=0.9)
+    paths.append(save_figure(fig, out_dir / "trajectory.png", tight=False))
 
     fig, axes = plt.subplots(4, 1, figsize=(8, 8), sharex=True)
     for ax, key, label in zip(axes, ("deviation", "e_x", "e_y", "e_theta"),
                               ("deviation [m]", "e_x [m]", "e_y [m]", "e_theta [rad]")):
-        ax.plot(t, series[key], color=color, lw=0.8)
+        ax.plot(*envelope(t, series[key]), color=color, lw=0.8)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].set_title(f"Tracking errors: {title}")
     axes[-1].set_xlabel("t [s]")
-    paths.append(save_figure(fig, out_dir / "errors.png"))
+    fig.subplots_adjust(left=0.12, right=0.98, bottom=0.07, top=0.95, hspace=0.12)
+    paths.append(save_figure(fig, out_dir / "errors.png", tight=False))
 
     fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
-    axes[0].plot(t, series["u_right"], color=color, lw=0.6, label="u_R")
-    axes[0].plot(t, series["u_left"], color=color, lw=0.6, alpha=0.5, label="u_L")
+    axes[0].plot(*envelope(t, series["u_right"]), color=color, lw=0.6, label="u_R")
+    axes[0].plot(*envelope(t, series["u_left"]), color=color, lw=0.6, alpha=0.5, label="u_L")
     axes[0].set_ylabel("voltage [V]")
     axes[0].legend(loc="best")
-    axes[1].plot(t, series["s_right"], lw=0.6, color=color, label="s_R")
-    axes[1].plot(t, series["s_left"], lw=0.6, color=color, alpha=0.5, label="s_L")
+    axes[1].plot(*envelope(t, series["s_right"]), lw=0.6, color=color, label="s_R")
+    axes[1].plot(*envelope(t, series["s_left"]), lw=0.6, color=color, alpha=0.5, label="s_L")
     axes[1].set_ylabel("s [rad/s]")
     axes[1].legend(loc="best")
-    axes[2].plot(t, series["d_true_right"], "k", lw=0.5, label="d true (R)")
-    axes[2].plot(t, series["d_hat_ndo_right"] + series["d_hat_nn_right"], color=color, lw=0.7, label="d_hat (R)")
+    axes[2].plot(*envelope(t, series["d_true_right"]), color="0.55", lw=0.5, label="d true (R)")
+    axes[2].plot(*envelope(t, series["d_hat_ndo_right"] + series["d_hat_nn_right"]), color=color, lw=0.7,
+                 label="d_hat (R)")
     axes[2].set_ylabel("d [rad/s^2]")
     axes[2].legend(loc="best")
     axes[0].set_title(f"Control signal, sliding variable, disturbance: {title}")
     axes[-1].set_xlabel("t [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
-    paths.append(save_figure(fig, out_dir / "control.png"))
+    fig.subplots_adjust(left=0.11, right=0.98, bottom=0.08, top=0.94, hspace=0.12)
+    paths.append(save_figure(fig, out_dir / "control.png", tight=False))
     return paths

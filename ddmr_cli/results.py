@@ -64,6 +64,10 @@ class SimulationResult:
         """
         import pandas as pd
 
+        return pd.DataFrame(self.rows(segments))
+
+    def rows(self, segments: bool = False) -> list[dict]:
+        """The rows of :meth:`to_pandas` as dicts (no pandas needed)."""
         segs = list(enumerate(self.segments)) if segments else [(0, "total")]
         rows = []
         for i, seed in enumerate(self.seeds):
@@ -72,10 +76,10 @@ class SimulationResult:
                 if segments:
                     row["segment"] = seg
                 row["status"] = "diverged" if self.diverged[i] else "ok"
-                row["divergence_time"] = self.divergence_time[i]
+                row["divergence_time"] = float(self.divergence_time[i])
                 row.update({m: float(self.metrics[m][i, j]) for m in METRICS})
                 rows.append(row)
-        return pd.DataFrame(rows)
+        return rows
 
     def summary(self) -> dict[str, float]:
         """Across-seed mean and SD of every whole-run metric (Table 4's statistic), plus run counts."""
