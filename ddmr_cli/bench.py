@@ -40,32 +40,50 @@ def machine_line() -> str:
             f"python {platform.python_version()}, numpy {np.__version__}")
 
 
-def _simulation(controller: str, duration: float):
+def _simulation(controller: str, duration: float, engine: str = "auto"):
     from .config import build_simulation, compose_config
 
-    cfg = compose_config([f"controller={controller}", f"simulation.duration={duration}"])
+    cfg = compose_config([f"controller={controller}", f"simulation.duration={duration}", f"simulation.engine={engine}"])
     return build_simulation(cfg)
 
 
-def engine_throughput(batch: int, controller: str, duration: float) -> float:
-    """Simulated control steps per second (runs x steps / wall time) of one batch on this core."""
+def engine_throughput(batch: int, controller: str, duration: float, engine: str = "auto") -> float:
+    """Simulated control steps per second (runs x steps / wall time) of one batch."""
     from .simulation import simulate
 
-    sim = _simulation(controller, duration)
+    sim = _simulation(controller, duration, engine)
     started = time.perf_counter()
     simulate(sim, range(batch))
     return batch * sim.n_steps / (time.perf_counter() - started)
 
 
 def per_seed_loop_throughput(n_seeds: int, controller: str, duration: float) -> float:
-    """The baseline: the same model, one ``simulate`` call per seed in a Python loop."""
+    """The baseline: the same model in the straightforward numpy engine, one seed at a time in a Python loop."""
     from .simulation import simulate
 
-    sim = _simulation(controller, duration)
+    sim = _simulation(controller, duration, "numpy")
     started = time.perf_counter()
     for seed in range(n_seeds):
         simulate(sim, [seed])
     return n_seeds * sim.n_steps / (time.perf_counter() - started)
+
+
+def compile_time() -> tuple[float, float]:
+    """Seconds of a first tiny run with an empty numba cache (compilation) and with the cache filled."""
+    code = ("import time; t = time.perf_counter(); from ddmr_cli import Simulation, simulate, SMC, PID, "
+            "NonlinearDisturbanceObserver, RBFNetworkObserver; "
+            "simulate(Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(), nn=RBFNetworkObserver()), "
+            "duration=0.01), [0]); print(time.perf_counter() - t)")
+    cache = tempfile.mkdtemp(prefix="ddmr-numba-cache-")
+    try:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        cold = float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                    check=True).stdout)
+        warm = float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                    check=True).stdout)
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    return cold, warm
 
 
 def _ddmr(args: list[str], cwd: Path) -> tuple[float, float]:
@@ -85,35 +103,52 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="ddmr bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="tiny sizes (seconds): keeps the script from rotting")
     parser.add_argument("--skip-e2e", action="store_true", help="engine figures only")
+    parser.add_argument("--engine", choices=("auto", "numpy"), default="auto",
+                        help="numpy: every figure with the numpy engine (the 'before' of the compiled engine)")
     args = parser.parse_args(argv)
-    quick = args.quick
+    quick, engine = args.quick, args.engine
     print(machine_line())
+    print(f"engine: {engine}")
     print(f"numbers: {'QUICK (tiny sizes, not the targets)' if quick else 'full'}")
 
-    print("\n1. engine throughput, simulated control steps per second on one core")
+    from .kernel import set_threads
+
+    print("\n1. engine throughput, simulated control steps per second (runs x steps / wall)")
     batches = (1, 10) if quick else (1, 50, 1000)
-    durations = {1: 2.0, 10: 0.5, 50: 5.0, 1000: 1.0} if not quick else {1: 0.3, 10: 0.3}
-    print(f"   {'controller':<14}" + "".join(f"{'batch ' + str(b):>16}" for b in batches))
+    durations = {1: 0.3, 10: 0.3} if quick else {1: 3.0, 50: 5.0, 1000: 1.0}
+    set_threads(1)
+    print(f"   one core (1 thread)" + "".join(f"{'batch ' + str(b):>16}" for b in batches))
     for controller in CONTROLLERS:
-        engine_throughput(1, controller, 0.02)  # warm-up (imports, first calls)
-        figures = [engine_throughput(b, controller, durations[b]) for b in batches]
-        print(f"   {controller:<14}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
-    n_loop, loop_duration = (4, 0.3) if quick else (10, 2.0)
+        engine_throughput(1, controller, 0.02)  # warm-up (imports, cache load)
+        figures = [engine_throughput(b, controller, durations[b], engine) for b in batches]
+        print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
+    cores = set_threads(0)
+    big = batches[-1]
+    print(f"   all {cores} cores, batch {big}, smc_ndo_nno: "
+          f"{engine_throughput(big, 'smc_ndo_nno', durations[big], engine) / 1e6:.3f} M/s")
+    set_threads(1)
+    n_loop, loop_duration = (2, 0.3) if quick else (5, 2.0)
     batch_ref = 10 if quick else 50
     loop = per_seed_loop_throughput(n_loop, "smc_ndo_nno", loop_duration)
+    numpy_batched = engine_throughput(batch_ref, "smc_ndo_nno", loop_duration, "numpy")
     batched = engine_throughput(batch_ref, "smc_ndo_nno", loop_duration)
-    print(f"   baseline (per-seed Python loop, smc_ndo_nno): {loop / 1e6:.3f} M/s; "
-          f"batched at {batch_ref}: {batched / 1e6:.3f} M/s; ratio {batched / loop:.1f}x")
-    target = 1e6
-    print(f"   target >= 1.000 M/s per core at batch 50 for every controller"
-          + ("" if quick else f": smc_ndo_nno {'met' if batched >= target else 'NOT met'}"))
+    print(f"   baseline, smc_ndo_nno, one core: numpy engine one seed at a time in a Python loop {loop / 1e6:.3f} M/s; "
+          f"numpy engine batched at {batch_ref} {numpy_batched / 1e6:.3f} M/s; compiled batched at {batch_ref} "
+          f"{batched / 1e6:.3f} M/s = {batched / loop:.0f}x the loop")
+    if engine != "numpy":
+        cold, warm = compile_time()
+        print(f"   compiled engine warm-up: first run with an empty cache {cold:.2f} s (compilation), "
+              f"with the on-disk cache {warm:.2f} s (every later process)")
+    print("   target >= 1 M/s per core at batch 50 for every controller")
+    set_threads(0)
     if args.skip_e2e:
         return 0
 
     work = Path(tempfile.mkdtemp(prefix="ddmr-bench-"))
     try:
         print("\n2. single `ddmr run` (process start to exit, with plots)")
-        run_args = ["run", "run.progress=false", f"hydra.run.dir={work / 'single'}"]
+        extra = [f"simulation.engine={engine}"]
+        run_args = ["run", "run.progress=false", f"hydra.run.dir={work / 'single'}", *extra]
         if quick:
             run_args += ["simulation.duration=1.0", "run.n_runs=5"]
         wall, peak = _ddmr(run_args, work)
@@ -123,15 +158,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n3. `ddmr run -m +experiment={experiment}` and its report")
         sweep_dir = work / experiment
         wall, peak = _ddmr(["run", "-m", f"+experiment={experiment}", f"hydra.sweep.dir={sweep_dir}",
-                            "run.progress=false"], work)
+                            "run.progress=false", *extra], work)
         print(f"   sweep wall {wall:.2f} s, peak memory per process {peak:.0f} MB   (target < 15 s for table4)")
         wall, peak = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work)
         print(f"   report wall {wall:.2f} s, peak memory {peak:.0f} MB   (target < 15 s)")
 
-        n_seeds = 200 if quick else 10_000
+        n_seeds = 200 if quick else (10_000 if engine != "numpy" else 1_000)
         print(f"\n4. one {n_seeds}-seed scenario-1 run of 15 s (metrics only)")
         wall, peak = _ddmr(["run", f"run.n_runs={n_seeds}", "run.keep_series=[]", "run.plots=false",
-                            "run.progress=false", f"hydra.run.dir={work / 'many'}"], work)
+                            "run.progress=false", f"hydra.run.dir={work / 'many'}", *extra], work)
         print(f"   wall {wall:.2f} s, peak memory {peak:.0f} MB   (target < 60 s and < 2048 MB for 10,000 seeds)")
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -174,3 +174,22 @@ def test_killed_sweep_resumes_to_the_same_totals(tmp_path, smoke_sweep_dir):
     assert (resumed.stdout + resumed.stderr).count("skipped") == done
     pd.testing.assert_frame_equal(_metrics(sweep_dir).drop(columns="job"),
                                   _metrics(smoke_sweep_dir).drop(columns="job"), check_exact=True)
+
+
+def _ray_launcher_installed() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is not None
+
+
+@pytest.mark.skipif(not _ray_launcher_installed(),
+                    reason="the ray extra is not installed (pip install -e '.[ray]'); .ci/run installs it and runs this")
+def test_smoke_sweep_through_ray_gives_the_same_numbers(smoke_sweep_dir, tmp_path):
+    sweep_dir = tmp_path / "ray"
+    proc = run_ddmr(["run", "-m", "+experiment=smoke", "launcher=ray", "controller=pid,smc_ndo_nno", "scenario=paper_1",
+                     f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    reference = _metrics(smoke_sweep_dir)
+    reference = reference[reference.controller.isin(["pid", "smc_ndo_nno"]) & (reference.scenario == "paper_1")]
+    pd.testing.assert_frame_equal(_metrics(sweep_dir).drop(columns="job"),
+                                  reference.drop(columns="job").reset_index(drop=True), check_exact=True)
