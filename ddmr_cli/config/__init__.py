@@ -31,7 +31,7 @@ def group_options(group: str) -> list[str]:
         GlobalHydra.instance().clear()
     with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
         options = GlobalHydra.instance().config_loader().get_group_options(group)
-    return sorted(o for o in options if not o.startswith("schema"))
+    return sorted(options)
 
 
 def run_config(cfg, progress: Callable[[int, int], None] | None = None):

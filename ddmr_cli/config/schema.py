@@ -1,6 +1,6 @@
 """Typed config schemas (dataclasses registered in Hydra's ConfigStore); the values live in ``conf/`` YAML.
 
-Each YAML file of a group starts from its schema (``defaults: [/schema/<group>/<name>@_here_]``), so a
+Each YAML file of a group starts from its schema (``defaults: [/schema_<name>@_here_]``), so a
 misspelt key or a wrong type is refused when the config is composed. Per-wheel gains accept a number or a
 ``[right, left]`` pair, hence ``Any``; :mod:`ddmr_cli.config.validate` checks the values.
 """
@@ -182,14 +182,14 @@ def register_configs() -> None:
     """Register the schemas; idempotent."""
     cs = ConfigStore.instance()
     cs.store(name="ddmr_schema", node=DDMRConfig)
-    for group, name, node in [
-        ("robot", "robot", RobotConfig), ("terrain", "terrain", TerrainConfig),
-        ("scenario", "scenario", ScenarioConfig), ("controller", "pid", PIDConfig),
-        ("controller", "smc", SMCConfig), ("controller", "open_loop", OpenLoopConfig),
-        ("trajectory", "line", LineConfig), ("trajectory", "circle", CircleConfig),
-        ("trajectory", "figure_eight", FigureEightConfig),
+    for name, node in [
+        ("robot", RobotConfig), ("terrain", TerrainConfig), ("scenario", ScenarioConfig),
+        ("controller_pid", PIDConfig), ("controller_smc", SMCConfig), ("controller_open_loop", OpenLoopConfig),
+        ("trajectory_line", LineConfig), ("trajectory_circle", CircleConfig),
+        ("trajectory_figure_eight", FigureEightConfig),
     ]:
-        cs.store(group=f"schema/{group}", name=name, node=node)
+        # root-level names (not groups), so `ddmr run --help` lists only the real options
+        cs.store(name=f"schema_{name}", node=node)
 
 
 register_configs()
