@@ -143,7 +143,9 @@ def cmd_run(argv: list[str]) -> int:
             return status
     from .hydra_main import main as hydra_main
 
-    sys.argv = ["ddmr run", *argv]
+    # shell completion registers and queries the program `ddmr` (see `main`); everything else is `ddmr run`
+    completing = bool({"-sc", "--shell-completion"} & flags.keys())
+    sys.argv = ["ddmr" if completing else "ddmr run", *argv]
     sweep.last_sweep = None
     try:
         hydra_main()
@@ -178,6 +180,19 @@ def cmd_bench(argv: list[str]) -> int:
     return bench_main(argv)
 
 
+def _complete(argv: list[str]) -> int:
+    """Answer a shell-completion query for ``ddmr run ...``: Hydra completes the words after ``run``."""
+    import os
+
+    line = os.environ.get("COMP_LINE", "")
+    words = line.split(" ")
+    if len(words) > 1 and words[1] == "run":
+        os.environ["COMP_LINE"] = " ".join([words[0], *words[2:]])
+        point = int(os.environ.get("COMP_POINT", len(line)))
+        os.environ["COMP_POINT"] = str(max(0, point - len("run ")))
+    return cmd_run(argv)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
@@ -188,6 +203,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         print(f"ddmr {__version__}")
         return 0
+    if argv[0] in ("-sc", "--shell-completion"):  # the installed completion script asks `ddmr -sc query=...`
+        return _complete(argv)
     command, rest = argv[0], argv[1:]
     commands = {"run": cmd_run, "report": cmd_report, "bench": cmd_bench}
     if command not in commands:

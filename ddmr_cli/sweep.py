@@ -142,3 +142,14 @@ class SweepAggregator(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         global last_sweep
         last_sweep = aggregate(Path(config.hydra.sweep.dir))
+        _shutdown_joblib_workers()
+
+
+def _shutdown_joblib_workers() -> None:
+    """Stop the joblib launcher's worker processes now rather than after loky's idle timeout."""
+    import sys
+
+    if "joblib" in sys.modules:
+        from joblib.externals.loky import get_reusable_executor
+
+        get_reusable_executor().shutdown(wait=True)

@@ -193,3 +193,15 @@ def test_smoke_sweep_through_ray_gives_the_same_numbers(smoke_sweep_dir, tmp_pat
     reference = reference[reference.controller.isin(["pid", "smc_ndo_nno"]) & (reference.scenario == "paper_1")]
     pd.testing.assert_frame_equal(_metrics(sweep_dir).drop(columns="job"),
                                   reference.drop(columns="job").reset_index(drop=True), check_exact=True)
+
+
+def test_shell_completion_completes_groups_options_and_keys(tmp_path):
+    script = run_ddmr(["run", "-sc", "install=bash"], cwd=tmp_path)
+    assert script.returncode == 0 and "complete -o nospace -o default -F hydra_bash_completion ddmr" in script.stdout
+    options = run_ddmr(["-sc", "query=bash"], cwd=tmp_path,
+                       env={"COMP_LINE": "ddmr run controller=smc_", "COMP_POINT": "24"})
+    assert options.returncode == 0
+    assert set(options.stdout.split()) == {"controller=smc_ndo", "controller=smc_ndo_nno", "controller=smc_ndo_nno_text",
+                                           "controller=smc_nno"}
+    keys = run_ddmr(["-sc", "query=bash"], cwd=tmp_path, env={"COMP_LINE": "ddmr run controller.n", "COMP_POINT": "22"})
+    assert "controller.ndo." in keys.stdout.split()
