@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import logging
 import platform
-import threading
 import time
 import traceback
 from pathlib import Path
@@ -75,12 +74,6 @@ def run_job(cfg: DictConfig) -> dict:
     return summary
 
 
-def _import_plotting() -> None:
-    from .plots import pyplot
-
-    pyplot()
-
-
 def _in_sweep() -> bool:
     try:
         from hydra.core.hydra_config import HydraConfig
@@ -103,9 +96,6 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
 
     from .kernel import set_threads
 
-    if cfg.run.plots and cfg.run.keep_series:  # import matplotlib while the (GIL-free) engine runs
-        plotting = threading.Thread(target=_import_plotting, daemon=True)
-        plotting.start()
     sim = build_simulation(cfg)
     seeds = seeds_of(cfg)
     # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
