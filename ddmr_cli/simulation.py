@@ -41,6 +41,9 @@ _BYTES_PER_RUN_STEP = 8 * (len(kernel.REC1) + 2 * len(kernel.REC2) + 1 + 3)
 CHUNK_BUDGET = 192 * 2**20
 MAX_CHUNK_STEPS = 4096
 MIN_CHUNK_STEPS = 64
+#: column of each recorded signal in the step buffers (layout shared with the compiled kernel)
+_REC1_INDEX = {name: i for i, name in enumerate(kernel.REC1)}
+_REC2_INDEX = {name: i for i, name in enumerate(kernel.REC2)}
 
 
 @dataclass
@@ -163,8 +166,7 @@ class NumpyStepper:
         x, y, th, dist, w = self.x, self.y, self.th, self.dist, self.w
         roughness_noise = -noise[:, :, :2]  # (runs, steps, 2)
         damping_scale = 1.0 + np.clip(m.unc.std * noise[:, :, 2], m.unc.low, m.unc.high)
-        I = {name: i for i, name in enumerate(kernel.REC1)}
-        J = {name: i for i, name in enumerate(kernel.REC2)}
+        I, J = _REC1_INDEX, _REC2_INDEX
         for j in range(noise.shape[1]):
             k = k0 + j
             x_r, y_r, th_r, v_r, omega_r = m.ref[k]
@@ -315,8 +317,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     diverged = np.zeros(n_runs, dtype=bool)
     divergence_time = np.full(n_runs, np.nan)
     series = {name: np.empty((len(keep_idx), n_steps)) for name in SERIES_CHANNELS} if keep_idx else {}
-    I = {name: i for i, name in enumerate(kernel.REC1)}
-    J = {name: i for i, name in enumerate(kernel.REC2)}
+    I, J = _REC1_INDEX, _REC2_INDEX
     with np.errstate(all="ignore"):
         k0 = 0
         while k0 < n_steps:
