@@ -177,8 +177,9 @@ def test_pid_drifts_at_zero_error():
 # --------------------------------------------------------------------------------------------------------------
 
 
-class RecordingSMC(SMC):
-    """SMC that remembers the largest unsaturated command it produced (for the saturation test)."""
+class _RecordsCommand:
+    """Mixin: remembers the largest unsaturated command the controller produced (for the saturation test).
+    Overriding ``command`` also keeps the controller on the numpy engine, where ``command`` is called."""
 
     def reset(self, w0):
         super().reset(w0)
@@ -190,15 +191,12 @@ class RecordingSMC(SMC):
         return u
 
 
-class RecordingPID(PID):
-    def reset(self, w0):
-        super().reset(w0)
-        self.max_abs_command = 0.0
+class RecordingSMC(_RecordsCommand, SMC):
+    pass
 
-    def command(self, w, w_d, w_d_dot):
-        u = super().command(w, w_d, w_d_dot)
-        self.max_abs_command = max(self.max_abs_command, float(np.max(np.abs(u))))
-        return u
+
+class RecordingPID(_RecordsCommand, PID):
+    pass
 
 
 @pytest.mark.parametrize("make", [

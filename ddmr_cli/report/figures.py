@@ -230,18 +230,24 @@ class ScenarioFigures:
                    "Distance to the reference point over time, log scale; shaded bands alternate terrain zones, "
                    "dotted lines mark scenario phases.")
 
-    def fig_pose_errors(self, plt):
-        fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+    def _time_panels(self, axes, jobs, keys, ylabels, zero_line: bool = False) -> bool:
+        """One channel per panel against time, every job a line; returns whether a y range was clipped."""
         clipped = False
-        for ax, key, ylabel in zip(axes, ("e_x", "e_y", "e_theta"),
-                                   ("e_x [m]", "e_y [m]", "e_θ [rad]")):
+        for ax, key, ylabel in zip(axes, keys, ylabels):
             self._decorate_time(ax, labels=ax is axes[0])
-            for job in self.jobs:
+            for job in jobs:
                 s = self._s(job)
                 _line(ax, s["t"], s[key], job)
-            clipped |= self._robust_ylim(ax, [self._s(j)[key] for j in self.jobs], self._s(self.ref)["t"])
+            if zero_line:
+                ax.axhline(0, color="0.3", lw=0.6)
+            clipped |= self._robust_ylim(ax, [self._s(j)[key] for j in jobs], self._s(self.ref)["t"])
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
+        return clipped
+
+    def fig_pose_errors(self, plt):
+        fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+        clipped = self._time_panels(axes, self.jobs, ("e_x", "e_y", "e_theta"), ("e_x [m]", "e_y [m]", "e_θ [rad]"))
         axes[0].set_title(self._title("Figs. 6/12: longitudinal, lateral and heading errors"))
         _legend(axes[0])
         axes[-1].set_xlabel("t [s]")
@@ -310,16 +316,8 @@ class ScenarioFigures:
             self.notes.append(f"{self.scenario}: no sliding-mode controller; Fig. 9 skipped")
             return
         fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True)
-        clipped = False
-        for ax, key, wheel in zip(axes, ("s_right", "s_left"), ("right", "left")):
-            self._decorate_time(ax, labels=ax is axes[0])
-            for job in jobs:
-                s = self._s(job)
-                _line(ax, s["t"], s[key], job)
-            ax.axhline(0, color="0.3", lw=0.6)
-            clipped |= self._robust_ylim(ax, [self._s(j)[key] for j in jobs], self._s(self.ref)["t"])
-            ax.set_ylabel(f"s, {wheel} wheel [rad/s]")
-            ax.grid(alpha=0.3)
+        clipped = self._time_panels(axes, jobs, ("s_right", "s_left"),
+                                    ("s, right wheel [rad/s]", "s, left wheel [rad/s]"), zero_line=True)
         axes[0].set_title(self._title("Fig. 9: sliding variable"))
         _legend(axes[0])
         axes[-1].set_xlabel("t [s]")
