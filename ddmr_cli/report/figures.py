@@ -245,15 +245,20 @@ class ScenarioFigures:
             ax.grid(alpha=0.3)
         return clipped
 
-    def fig_pose_errors(self, plt):
-        fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
-        clipped = self._time_panels(axes, self.jobs, ("e_x", "e_y", "e_theta"), ("e_x [m]", "e_y [m]", "e_θ [rad]"))
-        axes[0].set_title(self._title("Figs. 6/12: longitudinal, lateral and heading errors"))
+    def _save_time_panels(self, fig, axes, clipped: bool, title: str, name: str, caption: str, text: str) -> None:
+        """Title, legend and time axis of a :meth:`_time_panels` figure, then save it with its caption."""
+        axes[0].set_title(self._title(title))
         _legend(axes[0])
         axes[-1].set_xlabel("t [s]")
         note = " The y ranges fit t ≥ 1 s; the initial transient is off-scale." if clipped else ""
-        self._save(fig, "fig06_pose_errors", "Pose errors e_x, e_y, e_θ vs time (paper Figs. 6 and 12)",
-                   "Errors in the robot frame." + note)
+        self._save(fig, name, caption, text + note)
+
+    def fig_pose_errors(self, plt):
+        fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
+        clipped = self._time_panels(axes, self.jobs, ("e_x", "e_y", "e_theta"), ("e_x [m]", "e_y [m]", "e_θ [rad]"))
+        self._save_time_panels(fig, axes, clipped, "Figs. 6/12: longitudinal, lateral and heading errors",
+                               "fig06_pose_errors", "Pose errors e_x, e_y, e_θ vs time (paper Figs. 6 and 12)",
+                               "Errors in the robot frame.")
 
     def fig_disturbance(self, plt):
         observers = [j for j in self.jobs if "L" in (j.summary.get("parameters") or {})]
@@ -318,12 +323,9 @@ class ScenarioFigures:
         fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True)
         clipped = self._time_panels(axes, jobs, ("s_right", "s_left"),
                                     ("s, right wheel [rad/s]", "s, left wheel [rad/s]"), zero_line=True)
-        axes[0].set_title(self._title("Fig. 9: sliding variable"))
-        _legend(axes[0])
-        axes[-1].set_xlabel("t [s]")
-        note = " The y ranges fit t ≥ 1 s; the initial transient is off-scale." if clipped else ""
-        self._save(fig, "fig09_sliding", "Sliding variable of both wheels (paper Fig. 9)",
-                   "s = w_d − w per wheel for the sliding-mode controllers." + note)
+        self._save_time_panels(fig, axes, clipped, "Fig. 9: sliding variable", "fig09_sliding",
+                               "Sliding variable of both wheels (paper Fig. 9)",
+                               "s = w_d − w per wheel for the sliding-mode controllers.")
 
     def fig_environment(self, plt):
         s = self._s(self.ref)
