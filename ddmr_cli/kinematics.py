@@ -40,11 +40,6 @@ def inverse(v, omega, wheel_radius: float, half_track: float):
     return w_right, w_left
 
 
-def pose_rates(theta, v, omega):
-    """Unicycle kinematics, the paper's (2)-(3): ``(x', y', theta')``."""
-    return v * np.cos(theta), v * np.sin(theta), omega
-
-
 def pose_error(x, y, theta, x_ref, y_ref, theta_ref):
     """Tracking error expressed in the robot frame (MODEL.md 2; Kanayama et al. 1990).
 

@@ -51,7 +51,6 @@ METRICS: dict[str, tuple[str, str]] = {
     "d_est_mae_ndo": ("rad/s^2", "mean |d_true - d_hat_NDO| of both wheels (the NDO part alone)"),
     "s_mae": ("rad/s", "mean |s| of both wheels"),
 }
-SEGMENT_METRICS = tuple(m for m in METRICS if m not in ("deviation_max", "deviation_final"))
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Seeded noise: one generator per run, drawn in chunks, so a seed gives the same stream in any batch.
 
-Each run owns ``numpy.random.default_rng(seed)``. Per step it consumes ``CHANNELS`` standard normals
+Each run owns ``numpy.random.default_rng(seed)``. Per step it consumes three standard normals
 (right-wheel roughness, left-wheel roughness, damping uncertainty), always all of them, so that the same seed
 sees the same terrain whatever the scenario and controller ("same seed, same terrain"). The streams are
 turned into OU processes with an exact discretisation, in chunks whose size does not change the numbers.
@@ -15,8 +15,6 @@ import numpy as np
 from .kernel import _jit
 from .terrain import ou_coefficients
 
-CHANNELS = 3  # roughness right, roughness left, damping uncertainty
-CHUNK_BYTES = 48 * 2**20  # memory for one chunk of draws, whatever the batch size
 
 
 @_jit
@@ -55,7 +53,6 @@ class OUStreams:
         self.state = np.empty((n_runs, n_ch))
         for i, rng in enumerate(self.generators):
             rng.standard_normal(out=self.state[i])
-        self.chunk_steps = int(max(16, min(4096, CHUNK_BYTES // (8 * n_ch * max(n_runs, 1)))))
 
     def next_chunk(self, n_steps: int) -> np.ndarray:
         """The next ``n_steps`` values, run-major: shape ``(n_runs, n_steps, channels)``."""

@@ -37,9 +37,6 @@ class WheelMatrix:
     def __call__(self, v: np.ndarray) -> np.ndarray:
         return self.p * v + self.q * v[:, ::-1]
 
-    def scaled(self, factor: float) -> "WheelMatrix":
-        return WheelMatrix(self.p * factor, self.q * factor)
-
 
 @dataclass(frozen=True)
 class Robot:
@@ -143,16 +140,6 @@ class NominalModel:
         return cls(robot.inertia_matrix, robot.damping, robot.voltage_gain)
 
     @cached_property
-    def drift(self) -> np.ndarray:
-        """A = J^-1 B (2x2)."""
-        return np.linalg.inv(self.inertia) * self.damping
-
-    @cached_property
-    def gain(self) -> np.ndarray:
-        """g = J^-1 K_u (2x2)."""
-        return np.linalg.inv(self.inertia) * self.voltage_gain
-
-    @cached_property
     def inertia_over_gain(self) -> WheelMatrix:
         """J / K_u, so that ``g^-1 a = (J / K_u) a``."""
         return WheelMatrix.of(self.inertia / self.voltage_gain)
@@ -162,17 +149,9 @@ class NominalModel:
         """J^-1."""
         return WheelMatrix.of(np.linalg.inv(self.inertia))
 
-    def f(self, w: np.ndarray) -> np.ndarray:
-        """f(w) = -J^-1 B w (the paper's (8)), for a batch ``w`` of shape (n, 2)."""
-        return -self.damping * self.inverse_inertia(w)
-
     def f_plus_g_u(self, w: np.ndarray, u: np.ndarray) -> np.ndarray:
         """The nominal acceleration ``f(w) + g u = J^-1 (K_u u - B w)`` (the paper's (8) without d)."""
         return self.inverse_inertia(self.voltage_gain * u - self.damping * w)
-
-    def g_inverse_times(self, a: np.ndarray) -> np.ndarray:
-        """g^-1 a = J a / K_u for a batch ``a`` of shape (n, 2)."""
-        return self.inertia_over_gain(a)
 
     def voltage_for(self, a: np.ndarray, w: np.ndarray) -> np.ndarray:
         """``u = g^-1 (a - f(w)) = (J a + B w) / K_u``: the voltage that gives acceleration ``a`` at speed ``w``."""

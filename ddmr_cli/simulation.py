@@ -231,7 +231,7 @@ class CompiledStepper:
         self.w = model.w0.copy()
         self.w_d_prev = np.zeros_like(self.w)
         jinv = model.inv_inertia
-        j_over_ku = WheelMatrix.of(model.sim.robot.inertia_matrix / model.voltage_gain)
+        j_over_ku = NominalModel.from_robot(model.sim.robot).inertia_over_gain
         unc = model.unc
         consts = np.zeros(kernel.N_CONSTS)
         for index, value in ((kernel.C_L, model.L), (kernel.C_R, model.R), (kernel.C_JINV_P, jinv.p),

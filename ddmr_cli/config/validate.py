@@ -12,13 +12,11 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
+from ..controllers.base import SWITCHING_FUNCTIONS
+from ..controllers.smc import SURFACES
 from ..errors import ConfigError
+from ..simulation import ENGINES, INTEGRATORS
 from .build import _check_targets
-
-INTEGRATORS = ("euler", "rk4")
-ENGINES = ("auto", "compiled", "numpy")
-SURFACES = ("proportional", "integral")
-SWITCHINGS = ("sign", "sat", "tanh")
 #: Largest stable dt * rate of a first-order mode under the step (explicit Euler: 2, RK4: 2.78)
 STABILITY_LIMIT = {"euler": 2.0, "rk4": 2.78}
 
@@ -127,7 +125,7 @@ def validate_controller(cfg: DictConfig) -> None:
         per_wheel("controller.switching_gain", cfg.switching_gain)
         positive("controller.boundary_layer", cfg.boundary_layer)
         one_of("controller.surface", cfg.surface, SURFACES)
-        one_of("controller.switching", cfg.switching, SWITCHINGS)
+        one_of("controller.switching", cfg.switching, tuple(SWITCHING_FUNCTIONS))
         if cfg.get("ndo") is not None:
             per_wheel("controller.ndo.gain", cfg.ndo.gain, positive)
         if cfg.get("nn") is not None:
