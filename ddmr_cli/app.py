@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import platform
+import sys
 import time
 import traceback
 from pathlib import Path
@@ -18,6 +19,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from . import io
+from .errors import DDMRError
 from .config import build_simulation, config_hash, seeds_of, validate_config
 from .config.build import result_config
 
@@ -69,6 +71,9 @@ def run_job(cfg: DictConfig) -> dict:
                                          "traceback": traceback.format_exc(),
                                          "wall_time": time.perf_counter() - started})
         if "MULTIRUN" not in mode:
+            if isinstance(exc, (DDMRError, ValueError)):  # a bad value: one line, exit 2, never a traceback
+                print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
+                raise SystemExit(2) from None
             raise
         return {**base, "status": "failed", "error": error}
     return summary

@@ -29,7 +29,7 @@ from . import kernel
 from .noise import OUStreams
 from .outer_loop import Kanayama
 from .results import SERIES_CHANNELS, SimulationResult
-from .robot import NominalModel, Robot, WheelMatrix
+from .robot import NominalModel, Robot
 from .scenario import Scenario
 from .terrain import Terrain
 from .trajectory import StraightLine, Trajectory
@@ -114,7 +114,7 @@ class _Model:
         robot, dt = sim.robot, float(sim.dt)
         self.sim, self.n_runs, self.dt, self.n_steps = sim, n_runs, dt, sim.n_steps
         self.L, self.R = robot.half_track, robot.wheel_radius
-        self.inv_inertia = WheelMatrix.of(robot.inverse_inertia)
+        self.inv_inertia = robot.inverse_inertia
         self.damping, self.voltage_gain, self.u_max = robot.damping, robot.voltage_gain, robot.max_voltage
         self.terrain, self.scenario, self.kin = sim.terrain, sim.scenario, sim.outer_loop
         self.roughness_table = sim.terrain.roughness

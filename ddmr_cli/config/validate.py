@@ -151,8 +151,16 @@ def validate_trajectory(cfg: DictConfig) -> None:
 
 def _pd_spectral_radius(dt_g_kp: float, g_kd: float) -> float:
     """Largest |root| of the sampled wheel-speed loop under PD with a backward-difference derivative:
-    ``e_k+1 = (1 - dt g K_p - g K_d) e_k + g K_d e_k-1`` (the integral term is slow and left out)."""
-    return float(np.max(np.abs(np.roots([1.0, -(1.0 - dt_g_kp - g_kd), -g_kd]))))
+    ``e_k+1 = (1 - dt g K_p - g K_d) e_k + g K_d e_k-1`` (the integral term is slow and left out).
+
+    The roots of ``z^2 - a z - b`` in closed form (no LAPACK, so the verdict is the same on every CPU):
+    real ``(a +- sqrt(a^2 + 4 b)) / 2``, or a complex pair of modulus ``sqrt(-b)``."""
+    a, b = 1.0 - dt_g_kp - g_kd, g_kd
+    disc = a * a + 4.0 * b
+    if disc >= 0.0:
+        root = math.sqrt(disc)
+        return max(abs(0.5 * (a + root)), abs(0.5 * (a - root)))
+    return math.sqrt(-b)
 
 
 def validate_step(cfg: DictConfig) -> None:
@@ -164,12 +172,20 @@ def validate_step(cfg: DictConfig) -> None:
     dt = positive("simulation.dt", sim.dt)
     limit = STABILITY_LIMIT[sim.integrator]
     robot: Robot = build_robot(cfg.robot)
+    try:
+        derived = (*robot.inverse_inertia.eigenvalues, robot.damping, robot.voltage_gain)
+    except (ValueError, ArithmeticError) as exc:
+        raise ConfigError("robot", OmegaConf.to_container(cfg.robot),
+                          f"gives no usable inertia matrix J ({' '.join(str(exc).split())})") from None
+    if not all(math.isfinite(v) for v in derived):
+        raise ConfigError("robot", OmegaConf.to_container(cfg.robot),
+                          "gives a non-finite J^-1, damping B or voltage gain K_u (values too extreme)")
     b_max = 1.0 + (max(0.0, float(cfg.scenario.uncertainty.high)) if any(
         p.uncertainty for p in cfg.scenario.phases.values()) else 0.0)
-    rates = {"the plant's fastest pole": float(np.max(np.linalg.eigvals(robot.drift_matrix).real)) * b_max}
+    rates = {"the plant's fastest pole": max(robot.drift.eigenvalues) * b_max}
     ctrl = cfg.controller
     kind = str(ctrl.get("_target_", "")).rsplit(".", 1)[-1]
-    g_max = float(np.max(np.linalg.eigvals(robot.input_matrix).real))
+    g_max = max(robot.input_gain.eigenvalues)
     if kind == "SMC":
         rates["controller.lam + switching_gain/boundary_layer"] = float(
             np.max(per_wheel("controller.lam", ctrl.lam, positive))
