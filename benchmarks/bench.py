@@ -2,7 +2,7 @@
 
 import sys
 
-from ddmr_cli.bench import main
+from ddmr_cli.cli.bench import main
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[1:]))

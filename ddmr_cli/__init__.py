@@ -21,14 +21,14 @@ __version__ = "0.1.0"
 
 #: public name -> module that defines it; imported on first use (PEP 562), so ``ddmr --help`` starts fast
 _EXPORTS = {
-    "PID": "controllers", "SMC": "controllers", "NonlinearDisturbanceObserver": "controllers",
-    "OpenLoop": "controllers", "RBFNetworkObserver": "controllers", "WheelController": "controllers",
+    "PID": "control", "SMC": "control", "NonlinearDisturbanceObserver": "control",
+    "OpenLoop": "control", "RBFNetworkObserver": "control", "WheelController": "control",
     "ConfigError": "errors", "DDMRError": "errors", "SimulationError": "errors",
-    "Kanayama": "outer_loop", "paper_scenario": "presets", "paper_terrain": "presets",
-    "SimulationResult": "results", "NominalModel": "robot", "Robot": "robot",
-    "DampingUncertainty": "scenario", "Phase": "scenario", "Scenario": "scenario",
-    "Simulation": "simulation", "simulate": "simulation", "Terrain": "terrain", "TerrainZone": "terrain",
-    "Circle": "trajectory", "FigureEight": "trajectory", "StraightLine": "trajectory",
+    "Kanayama": "control.outer_loop", "paper_scenario": "model.presets", "paper_terrain": "model.presets",
+    "SimulationResult": "engine.results", "NominalModel": "model.robot", "Robot": "model.robot",
+    "DampingUncertainty": "model.scenario", "Phase": "model.scenario", "Scenario": "model.scenario",
+    "Simulation": "engine.simulation", "simulate": "engine.simulation", "Terrain": "model.terrain", "TerrainZone": "model.terrain",
+    "Circle": "model.trajectory", "FigureEight": "model.trajectory", "StraightLine": "model.trajectory",
 }
 
 
@@ -45,29 +45,29 @@ def __dir__():
 
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .controllers import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver,
+    from ddmr_cli.control import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver,
                               WheelController)
-    from .errors import ConfigError, DDMRError, SimulationError
-    from .outer_loop import Kanayama
-    from .presets import paper_scenario, paper_terrain
-    from .results import SimulationResult
-    from .robot import NominalModel, Robot
-    from .scenario import DampingUncertainty, Phase, Scenario
-    from .simulation import Simulation, simulate
-    from .terrain import Terrain, TerrainZone
-    from .trajectory import Circle, FigureEight, StraightLine
+    from ddmr_cli.errors import ConfigError, DDMRError, SimulationError
+    from ddmr_cli.control.outer_loop import Kanayama
+    from ddmr_cli.model.presets import paper_scenario, paper_terrain
+    from ddmr_cli.engine.results import SimulationResult
+    from ddmr_cli.model.robot import NominalModel, Robot
+    from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
+    from ddmr_cli.engine.simulation import Simulation, simulate
+    from ddmr_cli.model.terrain import Terrain, TerrainZone
+    from ddmr_cli.model.trajectory import Circle, FigureEight, StraightLine
 
 
 def compose_config(overrides=(), config_name: str = "config"):
-    """Compose the packaged Hydra config with overrides (see :mod:`ddmr_cli.config`)."""
-    from .config import compose_config as _compose
+    """Compose the packaged Hydra config with overrides (see :mod:`ddmr_cli.cli.config`)."""
+    from ddmr_cli.cli.config import compose_config as _compose
 
     return _compose(list(overrides), config_name)
 
 
 def run_config(cfg, progress=None) -> "SimulationResult":
-    """Build the simulation a composed config describes and run its seeds (see :mod:`ddmr_cli.config`)."""
-    from .config import run_config as _run
+    """Build the simulation a composed config describes and run its seeds (see :mod:`ddmr_cli.cli.config`)."""
+    from ddmr_cli.cli.config import run_config as _run
 
     return _run(cfg, progress=progress)
 

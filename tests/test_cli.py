@@ -16,7 +16,7 @@ import pytest
 
 from conftest import ddmr_executable, run_ddmr
 
-from ddmr_cli.io import read_series
+from ddmr_cli.cli.io import read_series
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 SMOKE_JOBS = 10
@@ -41,7 +41,7 @@ def test_help_lists_commands_and_config_groups(tmp_path):
 def test_cfg_job_prints_the_composed_config_and_runs_nothing(tmp_path):
     proc = run_ddmr(["run", "controller=pid", "--cfg", "job"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
-    assert "kp: 5.0" in proc.stdout and "_target_: ddmr_cli.controllers.PID" in proc.stdout
+    assert "kp: 5.0" in proc.stdout and "_target_: ddmr_cli.control.PID" in proc.stdout
     assert not (tmp_path / "outputs").exists()
 
 

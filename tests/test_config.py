@@ -8,8 +8,8 @@ from hydra import compose, initialize_config_module
 from omegaconf import OmegaConf
 
 from ddmr_cli import PID, SMC, ConfigError, Robot, paper_scenario, paper_terrain
-from ddmr_cli.config import build_simulation, config_hash, group_options, validate_config
-from ddmr_cli.config.build import build_scenario, build_terrain
+from ddmr_cli.cli.config import build_simulation, config_hash, group_options, validate_config
+from ddmr_cli.cli.config.build import build_scenario, build_terrain
 
 CONTROLLERS = ["pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"]
 SCENARIOS = ["paper_1", "paper_2"]

@@ -13,7 +13,7 @@ import pytest
 
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, RBFNetworkObserver, Robot, Simulation, Terrain,
                       TerrainZone, paper_terrain, simulate)
-from ddmr_cli.robot import GRAVITY
+from ddmr_cli.model.robot import GRAVITY
 
 ROBOT = Robot()
 MU = 0.05

@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import ddmr_cli.simulation as simulation_module
+import ddmr_cli.engine.simulation as simulation_module
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, Phase, RBFNetworkObserver, Scenario, Simulation,
                       Terrain, TerrainZone, WheelController, simulate)
-from ddmr_cli.scenario import DampingUncertainty
+from ddmr_cli.model.scenario import DampingUncertainty
 
 # short zones and phases, so that a 0.5 s run crosses every zone and phase and uses every noise channel
 TERRAIN = Terrain(zones=(TerrainZone("flat", 0.0, 0.1, 0.02), TerrainZone("very_rough", 0.15, 100.0, 0.10),

@@ -9,7 +9,7 @@ import pytest
 
 from ddmr_cli import (PID, SMC, ConfigError, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver, Simulation,
                       paper_scenario, paper_terrain, simulate)
-from ddmr_cli.kernel import AVAILABLE
+from ddmr_cli.engine.kernel import AVAILABLE
 
 pytestmark = pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; this only runs where it is missing")
 
@@ -85,7 +85,7 @@ def test_a_subclass_that_overrides_the_law_runs_on_numpy():
 
 
 def test_thread_count_does_not_change_the_numbers():
-    from ddmr_cli.kernel import set_threads
+    from ddmr_cli.engine.kernel import set_threads
 
     sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0), nn=RBFNetworkObserver()),
                      terrain=paper_terrain(), scenario=paper_scenario(1), duration=0.5)

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from ddmr_cli import OpenLoop, Robot, Simulation, Terrain, TerrainZone, simulate
-from ddmr_cli import kinematics
+from ddmr_cli.model import kinematics
 
 ROBOT = Robot()
 R, L = ROBOT.wheel_radius, ROBOT.half_track

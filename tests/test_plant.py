@@ -15,7 +15,7 @@ from scipy.linalg import expm
 
 from ddmr_cli import (SMC, NonlinearDisturbanceObserver, OpenLoop, Phase, Robot, Scenario, Simulation, Terrain,
                       TerrainZone, simulate)
-from ddmr_cli.robot import GRAVITY
+from ddmr_cli.model.robot import GRAVITY
 
 ROBOT = Robot()
 QUIET = Terrain(zones=[TerrainZone("quiet", 0.0, 0.0, 0.0)])

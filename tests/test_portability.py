@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from ddmr_cli import SMC, NonlinearDisturbanceObserver, Robot, Simulation, compose_config, simulate
-from ddmr_cli.config import build_simulation, validate_config
-from ddmr_cli.config.validate import _pd_spectral_radius
-from ddmr_cli.presets import paper_scenario, paper_terrain
-from ddmr_cli.robot import SYMMETRY_RTOL, WheelMatrix
+from ddmr_cli.cli.config import build_simulation, validate_config
+from ddmr_cli.cli.config.validate import _pd_spectral_radius
+from ddmr_cli.model.presets import paper_scenario, paper_terrain
+from ddmr_cli.model.robot import SYMMETRY_RTOL, WheelMatrix
 
 #: A model built from a matrix one ulp away from the exact one agrees with it to this relative tolerance.
 ULP_RTOL = 1e-9

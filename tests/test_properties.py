@@ -11,8 +11,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from ddmr_cli import PID, SMC, NonlinearDisturbanceObserver, Robot, Simulation, Terrain, TerrainZone, simulate
-from ddmr_cli import kinematics
-from ddmr_cli.config import validate
+from ddmr_cli.model import kinematics
+from ddmr_cli.cli.config import validate
 from ddmr_cli.errors import ConfigError
 
 FAST = settings(max_examples=60, deadline=None, database=None)

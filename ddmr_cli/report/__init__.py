@@ -20,7 +20,7 @@ def build_report(path, out=None) -> Path:
     ddmr_cli.errors.DDMRError
         ``path`` is not a dir, holds no job, or no job completed.
     """
-    from .build import build
+    from ddmr_cli.report.build import build
 
     return build(path, out)
 

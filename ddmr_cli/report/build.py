@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import io
-from ..metrics import METRICS
-from . import tables as T
-from . import verdicts as V
-from .data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
-from .figures import common_seed, make_figures
+from ddmr_cli.cli import io
+from ddmr_cli.engine.metrics import METRICS
+from ddmr_cli.report import tables as T
+from ddmr_cli.report import verdicts as V
+from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
+from ddmr_cli.report.figures import common_seed, make_figures
 
 #: Settings shown in the configuration section (dotted config keys).
 KEY_SETTINGS = ("simulation.dt", "simulation.duration", "simulation.integrator", "simulation.initial_pose",
@@ -67,7 +67,7 @@ class Report:
 
     # --- sections ----------------------------------------------------------------------------------------
     def header(self) -> None:
-        from .. import __version__
+        from ddmr_cli import __version__
 
         d = self.data
         kind = "run dir" if d.single_run else "sweep dir"

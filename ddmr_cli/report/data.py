@@ -13,9 +13,9 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .. import io
-from ..errors import DDMRError
-from ..plots import label_of
+from ddmr_cli.cli import io
+from ddmr_cli.errors import DDMRError
+from ddmr_cli.report.run_plots import label_of
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -201,7 +201,7 @@ def load(path) -> ReportData:
     """Read a sweep dir or a single run dir; raises DDMRError when there is nothing to report."""
     import pandas as pd
 
-    from ..sweep import PLAN, load_sweep
+    from ddmr_cli.cli.sweep import PLAN, load_sweep
 
     path = Path(path).expanduser().resolve()
     if not path.is_dir():

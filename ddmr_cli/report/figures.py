@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import io
-from ..plots import color_of, pyplot
-from .data import Job, ReportData
+from ddmr_cli.cli import io
+from ddmr_cli.report.run_plots import color_of, pyplot
+from ddmr_cli.report.data import Job, ReportData
 
 MAX_POINTS = 5000
 DPI = 110

@@ -6,8 +6,8 @@ import math
 import re
 from typing import TYPE_CHECKING, Iterable, Sequence
 
-from ..metrics import METRICS
-from .data import PAPER_SCENARIO, ReportData, paper_numbers
+from ddmr_cli.engine.metrics import METRICS
+from ddmr_cli.report.data import PAPER_SCENARIO, ReportData, paper_numbers
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .data import ReportData, paper_numbers
-from .stats import (ALPHA, BOOT_SEED, N_BOOT, Paired, combine, paired, verdict_about, verdict_lower,
+from ddmr_cli.report.data import ReportData, paper_numbers
+from ddmr_cli.report.stats import (ALPHA, BOOT_SEED, N_BOOT, Paired, combine, paired, verdict_about, verdict_lower,
                     verdict_over)
-from .tables import fmt, isnan, md_table, pct
+from ddmr_cli.report.tables import fmt, isnan, md_table, pct
 
 NNO_READINGS = ("smc_ndo_nno", "smc_ndo_nno_text")
 RANKING = ("pid", "smc", "smc_ndo")  # then the NNO reading; largest deviation first

@@ -1,7 +1,7 @@
 """The simulation engine: a batch of seeded runs advanced together (MODEL.md sections 4-5).
 
 Every state array has a leading run axis, so a 50-seed statistic is one call. Each run draws its noise from
-its own generator (:mod:`ddmr_cli.noise`) and nothing couples runs, so seed k gives bit-identical numbers
+its own generator (:mod:`ddmr_cli.engine.noise`) and nothing couples runs, so seed k gives bit-identical numbers
 alone or inside any batch. Per step: measure, run the outer loop and the wheel controller, saturate ``u`` to
 ``[-U_max, U_max]``, hold ``u`` and the disturbance for the step, advance plant and pose (explicit Euler by
 default, RK4 as an option). A run whose deviation exceeds ``divergence_bound`` or turns NaN/inf is marked
@@ -9,7 +9,7 @@ diverged with the time it happened; the others carry on unaffected.
 
 Two steppers advance the state chunk by chunk and fill the same buffers: :class:`NumpyStepper` (the
 specification: vectorised over runs, any :class:`WheelController`) and :class:`CompiledStepper`
-(:mod:`ddmr_cli.kernel`, numba, for the built-in controllers; about 20-50x faster). ``engine='auto'`` takes the
+(:mod:`ddmr_cli.engine.kernel`, numba, for the built-in controllers; about 20-50x faster). ``engine='auto'`` takes the
 compiled one when the controller has a kernel.
 """
 
@@ -21,18 +21,18 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .controllers.base import WheelController
-from .errors import ConfigError
-from .kinematics import wrap_angle
-from .metrics import MetricAccumulator, StepSignals
-from . import kernel
-from .noise import OUStreams
-from .outer_loop import Kanayama
-from .results import SERIES_CHANNELS, SimulationResult
-from .robot import NominalModel, Robot
-from .scenario import Scenario
-from .terrain import Terrain
-from .trajectory import StraightLine, Trajectory
+from ddmr_cli.control.base import WheelController
+from ddmr_cli.errors import ConfigError
+from ddmr_cli.model.kinematics import wrap_angle
+from ddmr_cli.engine.metrics import MetricAccumulator, StepSignals
+from ddmr_cli.engine import kernel
+from ddmr_cli.engine.noise import OUStreams
+from ddmr_cli.control.outer_loop import Kanayama
+from ddmr_cli.engine.results import SERIES_CHANNELS, SimulationResult
+from ddmr_cli.model.robot import NominalModel, Robot
+from ddmr_cli.model.scenario import Scenario
+from ddmr_cli.model.terrain import Terrain
+from ddmr_cli.model.trajectory import StraightLine, Trajectory
 
 INTEGRATORS = ("euler", "rk4")
 ENGINES = ("auto", "compiled", "numpy")
@@ -222,7 +222,7 @@ class NumpyStepper:
 
 
 class CompiledStepper:
-    """The same step loop compiled with numba (:func:`ddmr_cli.kernel.run_chunk`), one run at a time."""
+    """The same step loop compiled with numba (:func:`ddmr_cli.engine.kernel.run_chunk`), one run at a time."""
 
     def __init__(self, model: _Model, spec) -> None:
         self.m = model

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..robot import NominalModel
-from .base import compact, per_wheel
+from ddmr_cli.model.robot import NominalModel
+from ddmr_cli.control.base import compact, per_wheel
 
 
 class NonlinearDisturbanceObserver:

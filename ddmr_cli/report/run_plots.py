@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import atomic_write
+from ddmr_cli.cli.io import atomic_write
 
 #: One colour per controller, the same in every figure.
 CONTROLLER_COLORS = {

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import WheelController, compact, per_wheel
+from ddmr_cli.control.base import WheelController, compact, per_wheel
 
 
 class OpenLoop(WheelController):
@@ -26,8 +26,8 @@ class OpenLoop(WheelController):
         return np.broadcast_to(self.voltage, w.shape).copy()
 
     def kernel_spec(self, w0):
-        """The compiled form (:mod:`ddmr_cli.kernel`)."""
-        from .. import kernel
+        """The compiled form (:mod:`ddmr_cli.engine.kernel`)."""
+        from ddmr_cli.engine import kernel
 
         return kernel.OPEN_LOOP, self.voltage.copy(), np.zeros(0), np.zeros((w0.shape[0], 1))
 

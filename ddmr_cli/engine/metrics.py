@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .kernel import _jit
+from ddmr_cli.engine.kernel import _jit
 
 #: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
 SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturated",

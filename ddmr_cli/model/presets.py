@@ -6,8 +6,8 @@ The YAML files in ``conf/terrain`` and ``conf/scenario`` hold the same values fo
 
 from __future__ import annotations
 
-from .scenario import DampingUncertainty, Phase, Scenario
-from .terrain import Terrain, TerrainZone
+from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
+from ddmr_cli.model.terrain import Terrain, TerrainZone
 
 
 def paper_terrain() -> Terrain:

@@ -63,7 +63,7 @@ def _explain(exc: BaseException, overrides: list[str]) -> str:
     from hydra.errors import MissingConfigException, OverrideParseException
     from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
 
-    from .config import group_options
+    from ddmr_cli.cli.config import group_options
 
     if isinstance(exc, OverrideParseException):
         return f"{exc.override}: cannot parse override ({str(exc.message).splitlines()[0]})" if hasattr(
@@ -101,9 +101,9 @@ def prevalidate(overrides: list[str], multirun: bool, config_name: str = "config
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from . import sweep
-    from .config import build_simulation, compose_config, validate_config
-    from .errors import ConfigError
+    from ddmr_cli.cli import sweep
+    from ddmr_cli.cli.config import build_simulation, compose_config, validate_config
+    from ddmr_cli.errors import ConfigError
 
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
@@ -134,7 +134,7 @@ def prevalidate(overrides: list[str], multirun: bool, config_name: str = "config
 
 
 def cmd_run(argv: list[str]) -> int:
-    from . import sweep
+    from ddmr_cli.cli import sweep
 
     overrides, flags = _split_args(argv)
     multirun = bool(flags.get("-m") or flags.get("--multirun"))
@@ -142,7 +142,7 @@ def cmd_run(argv: list[str]) -> int:
         status = prevalidate(overrides, multirun, str(flags.get("--config-name") or flags.get("-cn") or "config"))
         if status:
             return status
-    from .hydra_main import main as hydra_main
+    from ddmr_cli.cli.hydra_main import main as hydra_main
 
     # shell completion registers and queries the program `ddmr` (see `main`); everything else is `ddmr run`
     completing = bool({"-sc", "--shell-completion"} & flags.keys())
@@ -164,8 +164,8 @@ def cmd_report(argv: list[str]) -> int:
     parser.add_argument("path", help="a sweep dir (ddmr run -m ...) or a single run dir")
     parser.add_argument("--out", default=None, help="output dir (default: PATH/report)")
     args = parser.parse_args(argv)
-    from .errors import DDMRError
-    from .report import build_report
+    from ddmr_cli.errors import DDMRError
+    from ddmr_cli.report import build_report
 
     try:
         out = build_report(args.path, args.out)
@@ -176,7 +176,7 @@ def cmd_report(argv: list[str]) -> int:
 
 
 def cmd_bench(argv: list[str]) -> int:
-    from .bench import main as bench_main
+    from ddmr_cli.cli.bench import main as bench_main
 
     return bench_main(argv)
 
@@ -200,7 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(USAGE)
         return 0 if argv else EXIT_USAGE
     if argv[0] == "--version":
-        from . import __version__
+        from ddmr_cli import __version__
 
         print(f"ddmr {__version__}")
         return 0

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .metrics import METRICS
+from ddmr_cli.engine.metrics import METRICS
 
 if TYPE_CHECKING:  # pandas is imported only when a table is asked for
     import pandas as pd
@@ -32,7 +32,7 @@ class SimulationResult:
     segments : list of str
         ``total``, then ``zone:<name>`` per terrain zone and ``phase:<name>`` per scenario phase.
     metrics : dict of str -> ndarray (n_runs, n_segments)
-        Run metrics (:data:`ddmr_cli.metrics.METRICS`), NaN for diverged runs and empty segments.
+        Run metrics (:data:`ddmr_cli.engine.metrics.METRICS`), NaN for diverged runs and empty segments.
     diverged : ndarray of bool (n_runs,)
     divergence_time : ndarray (n_runs,)
         Time of divergence [s], NaN for runs that did not diverge.

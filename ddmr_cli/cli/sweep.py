@@ -17,7 +17,7 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
-from . import io
+from ddmr_cli.cli import io
 
 log = logging.getLogger("ddmr")
 

@@ -8,12 +8,12 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from ..errors import ConfigError
-from ..outer_loop import Kanayama
-from ..robot import Robot
-from ..scenario import DampingUncertainty, Phase, Scenario
-from ..simulation import Simulation
-from ..terrain import Terrain, TerrainZone
+from ddmr_cli.errors import ConfigError
+from ddmr_cli.control.outer_loop import Kanayama
+from ddmr_cli.model.robot import Robot
+from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
+from ddmr_cli.engine.simulation import Simulation
+from ddmr_cli.model.terrain import Terrain, TerrainZone
 
 #: Only the project's own classes may be instantiated from a config.
 ALLOWED_TARGET_PREFIX = "ddmr_cli."
@@ -65,7 +65,7 @@ def controller_name(cfg: DictConfig) -> str:
 
 
 def build_simulation(cfg: DictConfig) -> Simulation:
-    """The :class:`~ddmr_cli.simulation.Simulation` a composed (and validated) config describes."""
+    """The :class:`~ddmr_cli.engine.simulation.Simulation` a composed (and validated) config describes."""
     controller = instantiate_checked(cfg.controller, "controller")
     sim_cfg = cfg.simulation
     wheel = sim_cfg.initial_wheel_speeds

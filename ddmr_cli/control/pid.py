@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import WheelController, compact, per_wheel
+from ddmr_cli.control.base import WheelController, compact, per_wheel
 
 
 class PID(WheelController):
@@ -50,8 +50,8 @@ class PID(WheelController):
         self.integral = self.integral + self.dt * e
 
     def kernel_spec(self, w0):
-        """The compiled form (:mod:`ddmr_cli.kernel`): kind, parameters, centres, state (integral, e_prev)."""
-        from .. import kernel
+        """The compiled form (:mod:`ddmr_cli.engine.kernel`): kind, parameters, centres, state (integral, e_prev)."""
+        from ddmr_cli.engine import kernel
 
         params = np.concatenate([self.kp, self.ki, self.kd, [float(self.anti_windup)]])
         return kernel.PID_KIND, params, np.zeros(0), np.zeros((w0.shape[0], 4))

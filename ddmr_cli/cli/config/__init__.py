@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Callable, Sequence
 
-from . import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
-from .build import build_simulation, config_hash, seeds_of
-from .validate import validate_config
+from ddmr_cli.cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
+from ddmr_cli.cli.config.build import build_simulation, config_hash, seeds_of
+from ddmr_cli.cli.config.validate import validate_config
 
 CONFIG_MODULE = "ddmr_cli.conf"
 
@@ -36,7 +36,7 @@ def group_options(group: str) -> list[str]:
 
 def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     """Validate a composed config, build its simulation and run its seeds. Returns a SimulationResult."""
-    from ..simulation import simulate
+    from ddmr_cli.engine.simulation import simulate
 
     validate_config(cfg)
     sim = build_simulation(cfg)

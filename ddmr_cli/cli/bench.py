@@ -41,7 +41,7 @@ def machine_line() -> str:
 
 
 def _simulation(controller: str, duration: float, engine: str = "auto"):
-    from .config import build_simulation, compose_config
+    from ddmr_cli.cli.config import build_simulation, compose_config
 
     cfg = compose_config([f"controller={controller}", f"simulation.duration={duration}", f"simulation.engine={engine}"])
     return build_simulation(cfg)
@@ -49,7 +49,7 @@ def _simulation(controller: str, duration: float, engine: str = "auto"):
 
 def engine_throughput(batch: int, controller: str, duration: float, engine: str = "auto") -> float:
     """Simulated control steps per second (runs x steps / wall time) of one batch."""
-    from .simulation import simulate
+    from ddmr_cli.engine.simulation import simulate
 
     sim = _simulation(controller, duration, engine)
     started = time.perf_counter()
@@ -59,7 +59,7 @@ def engine_throughput(batch: int, controller: str, duration: float, engine: str 
 
 def per_seed_loop_throughput(n_seeds: int, controller: str, duration: float) -> float:
     """The baseline: the same model in the straightforward numpy engine, one seed at a time in a Python loop."""
-    from .simulation import simulate
+    from ddmr_cli.engine.simulation import simulate
 
     sim = _simulation(controller, duration, "numpy")
     started = time.perf_counter()
@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"engine: {engine}")
     print(f"numbers: {'QUICK (tiny sizes, not the targets)' if quick else 'full'}")
 
-    from .kernel import set_threads
+    from ddmr_cli.engine.kernel import set_threads
 
     print("\n1. engine throughput, simulated control steps per second (runs x steps / wall)")
     batches = (1, 10) if quick else (1, 50, 1000)

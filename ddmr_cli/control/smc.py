@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ConfigError
-from .base import SWITCHING_FUNCTIONS, WheelController, compact, per_wheel
-from .observers import NonlinearDisturbanceObserver, RBFNetworkObserver
+from ddmr_cli.errors import ConfigError
+from ddmr_cli.control.base import SWITCHING_FUNCTIONS, WheelController, compact, per_wheel
+from ddmr_cli.control.observers import NonlinearDisturbanceObserver, RBFNetworkObserver
 
 SURFACES = ("proportional", "integral")
 
@@ -103,9 +103,9 @@ class SMC(WheelController):
             obs.update(w, u_applied, self.s)
 
     def kernel_spec(self, w0):
-        """The compiled form (:mod:`ddmr_cli.kernel`): kind, parameters, RBF centres, and the state
+        """The compiled form (:mod:`ddmr_cli.engine.kernel`): kind, parameters, RBF centres, and the state
         ``[int e (2), z (2), W^T (2 n)]`` with ``z(0) = -Gamma w(0)`` and ``W(0) = 0``."""
-        from .. import kernel
+        from ddmr_cli.engine import kernel
 
         if (self.ndo is not None and type(self.ndo) is not NonlinearDisturbanceObserver) or (
                 self.nn is not None and type(self.nn) is not RBFNetworkObserver):

@@ -18,10 +18,10 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from . import io
-from .errors import DDMRError
-from .config import build_simulation, config_hash, seeds_of, validate_config
-from .config.build import result_config
+from ddmr_cli.cli import io
+from ddmr_cli.errors import DDMRError
+from ddmr_cli.cli.config import build_simulation, config_hash, seeds_of, validate_config
+from ddmr_cli.cli.config.build import result_config
 
 log = logging.getLogger("ddmr")
 
@@ -89,7 +89,7 @@ def _in_sweep() -> bool:
 
 
 def _names(cfg: DictConfig) -> tuple[str, str]:
-    from .config.build import controller_name
+    from ddmr_cli.cli.config.build import controller_name
 
     return controller_name(cfg.controller), str(cfg.scenario.name)
 
@@ -97,9 +97,9 @@ def _names(cfg: DictConfig) -> tuple[str, str]:
 def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None) -> dict:
     """Simulate the config's seeds and write every output file into ``out``; returns the summary."""
 
-    from .simulation import simulate
+    from ddmr_cli.engine.simulation import simulate
 
-    from .kernel import set_threads
+    from ddmr_cli.engine.kernel import set_threads
 
     sim = build_simulation(cfg)
     seeds = seeds_of(cfg)
@@ -117,7 +117,7 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
         io.write_series(out / io.SERIES, result.series)
         files.append(io.SERIES)
         if cfg.run.plots:
-            from .plots import run_plots
+            from ddmr_cli.report.run_plots import run_plots
 
             seed = next(iter(result.series))
             for path in run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import hydra
 from omegaconf import DictConfig
 
-from . import config  # noqa: F401  (registers the config schemas)
-from .app import run_job
+from ddmr_cli.cli import config  # noqa: F401  (registers the config schemas)
+from ddmr_cli.cli.app import run_job
 
 
 @hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")

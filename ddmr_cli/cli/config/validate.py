@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
-from ..controllers.base import SWITCHING_FUNCTIONS
-from ..controllers.smc import SURFACES
-from ..errors import ConfigError
-from ..simulation import ENGINES, INTEGRATORS
-from .build import _check_targets
+from ddmr_cli.control.base import SWITCHING_FUNCTIONS
+from ddmr_cli.control.smc import SURFACES
+from ddmr_cli.errors import ConfigError
+from ddmr_cli.engine.simulation import ENGINES, INTEGRATORS
+from ddmr_cli.cli.config.build import _check_targets
 #: Largest stable dt * rate of a first-order mode under the step (explicit Euler: 2, RK4: 2.78)
 STABILITY_LIMIT = {"euler": 2.0, "rk4": 2.78}
 
@@ -165,8 +165,8 @@ def _pd_spectral_radius(dt_g_kp: float, g_kd: float) -> float:
 
 def validate_step(cfg: DictConfig) -> None:
     """dt small enough for the integrator and the fastest loop (plant, observer, sliding surface, PID)."""
-    from ..robot import Robot
-    from .build import build_robot
+    from ddmr_cli.model.robot import Robot
+    from ddmr_cli.cli.config.build import build_robot
 
     sim = cfg.simulation
     dt = positive("simulation.dt", sim.dt)

@@ -12,8 +12,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .kernel import _jit
-from .terrain import ou_coefficients
+from ddmr_cli.engine.kernel import _jit
+from ddmr_cli.model.terrain import ou_coefficients
 
 
 

@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..robot import NominalModel
+from ddmr_cli.model.robot import NominalModel
 
 SwitchingFunction = Callable[[np.ndarray], np.ndarray]
 
@@ -37,7 +37,7 @@ def per_wheel(value, name: str) -> np.ndarray:
     """A gain given as a scalar (both wheels) or as a (right, left) pair, as an array of shape (2,)."""
     arr = np.broadcast_to(np.asarray(value, dtype=float), (2,)).copy()
     if not np.all(np.isfinite(arr)):
-        from ..errors import ConfigError
+        from ddmr_cli.errors import ConfigError
 
         raise ConfigError(name, value, "must be finite")
     return arr

@@ -2,7 +2,7 @@
 
 Each YAML file of a group starts from its schema (``defaults: [/schema_<name>@_here_]``), so a
 misspelt key or a wrong type is refused when the config is composed. Per-wheel gains accept a number or a
-``[right, left]`` pair, hence ``Any``; :mod:`ddmr_cli.config.validate` checks the values.
+``[right, left]`` pair, hence ``Any``; :mod:`ddmr_cli.cli.config.validate` checks the values.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from omegaconf import MISSING
 
 @dataclass
 class RobotConfig:
-    """Paper Table 2 plus motor constants (MODEL.md 1). Fields as :class:`ddmr_cli.robot.Robot`."""
+    """Paper Table 2 plus motor constants (MODEL.md 1). Fields as :class:`ddmr_cli.model.robot.Robot`."""
 
     mass: float = MISSING
     wheel_radius: float = MISSING
@@ -68,13 +68,13 @@ class ScenarioConfig:
 
 @dataclass
 class NDOConfig:
-    _target_: str = "ddmr_cli.controllers.NonlinearDisturbanceObserver"
+    _target_: str = "ddmr_cli.control.NonlinearDisturbanceObserver"
     gain: Any = 50.0
 
 
 @dataclass
 class NNConfig:
-    _target_: str = "ddmr_cli.controllers.RBFNetworkObserver"
+    _target_: str = "ddmr_cli.control.RBFNetworkObserver"
     n_neurons: int = 10
     width: float = 2.0
     learning_rate: Any = 50.0
@@ -84,7 +84,7 @@ class NNConfig:
 
 @dataclass
 class PIDConfig:
-    _target_: str = "ddmr_cli.controllers.PID"
+    _target_: str = "ddmr_cli.control.PID"
     kp: Any = 5.0
     ki: Any = 0.1
     kd: Any = 0.01
@@ -93,7 +93,7 @@ class PIDConfig:
 
 @dataclass
 class SMCConfig:
-    _target_: str = "ddmr_cli.controllers.SMC"
+    _target_: str = "ddmr_cli.control.SMC"
     name: str = "smc"
     lam: Any = 25.0
     switching_gain: Any = 12.0
@@ -106,13 +106,13 @@ class SMCConfig:
 
 @dataclass
 class OpenLoopConfig:
-    _target_: str = "ddmr_cli.controllers.OpenLoop"
+    _target_: str = "ddmr_cli.control.OpenLoop"
     voltage: Any = 0.0
 
 
 @dataclass
 class LineConfig:
-    _target_: str = "ddmr_cli.trajectory.StraightLine"
+    _target_: str = "ddmr_cli.model.trajectory.StraightLine"
     speed: float = 1.0
     heading: float = 0.0
     x0: float = 0.0
@@ -121,14 +121,14 @@ class LineConfig:
 
 @dataclass
 class CircleConfig:
-    _target_: str = "ddmr_cli.trajectory.Circle"
+    _target_: str = "ddmr_cli.model.trajectory.Circle"
     speed: float = 1.0
     radius: float = 2.0
 
 
 @dataclass
 class FigureEightConfig:
-    _target_: str = "ddmr_cli.trajectory.FigureEight"
+    _target_: str = "ddmr_cli.model.trajectory.FigureEight"
     amplitude: float = 3.0
     period: float = 30.0
 
