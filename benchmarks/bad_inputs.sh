@@ -30,7 +30,7 @@ simulation.dt=0.05
 controller=pid simulation.dt=0.005
 simulation.duration=-3
 simulation.integrator=rk5
-simulation.engine=gpu
+simulation.integrator=midpoint
 simulation.initial_pose=[0,0]
 controller.lam=nan
 controller.switching=bang

@@ -23,7 +23,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "PID": "control", "SMC": "control", "NonlinearDisturbanceObserver": "control",
     "OpenLoop": "control", "RBFNetworkObserver": "control", "WheelController": "control",
-    "ConfigError": "errors", "DDMRError": "errors", "SimulationError": "errors",
+    "ConfigError": "errors", "DDMRError": "errors",
     "Kanayama": "control.outer_loop", "paper_scenario": "model.presets", "paper_terrain": "model.presets",
     "SimulationResult": "engine.results", "NominalModel": "model.robot", "Robot": "model.robot",
     "DampingUncertainty": "model.scenario", "Phase": "model.scenario", "Scenario": "model.scenario",
@@ -47,7 +47,7 @@ def __dir__():
 if TYPE_CHECKING:  # pragma: no cover
     from ddmr_cli.control import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver,
                               WheelController)
-    from ddmr_cli.errors import ConfigError, DDMRError, SimulationError
+    from ddmr_cli.errors import ConfigError, DDMRError
     from ddmr_cli.control.outer_loop import Kanayama
     from ddmr_cli.model.presets import paper_scenario, paper_terrain
     from ddmr_cli.engine.results import SimulationResult
@@ -76,5 +76,5 @@ __all__ = [
     "Simulation", "simulate", "SimulationResult", "Robot", "NominalModel", "Terrain", "TerrainZone", "Scenario",
     "Phase", "DampingUncertainty", "StraightLine", "Circle", "FigureEight", "Kanayama", "WheelController", "PID",
     "SMC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver", "paper_terrain", "paper_scenario",
-    "compose_config", "run_config", "ConfigError", "DDMRError", "SimulationError",
+    "compose_config", "run_config", "ConfigError", "DDMRError",
 ]

@@ -29,7 +29,3 @@ class ConfigError(DDMRError, ValueError):
     def __init__(self, key: str, value: Any, rule: str) -> None:
         self.key, self.value, self.rule = key, value, rule
         super().__init__(f"{key}={value!r}: {rule}")
-
-
-class SimulationError(DDMRError, RuntimeError):
-    """The engine was asked for something it cannot do (not a diverging run: that is a result)."""

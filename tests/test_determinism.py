@@ -15,6 +15,7 @@ import ddmr_cli.engine.simulation as simulation_module
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, Phase, RBFNetworkObserver, Scenario, Simulation,
                       Terrain, TerrainZone, WheelController, simulate)
 from ddmr_cli.model.scenario import DampingUncertainty
+from nan_after import NaNAfter
 
 # short zones and phases, so that a 0.5 s run crosses every zone and phase and uses every noise channel
 TERRAIN = Terrain(zones=(TerrainZone("flat", 0.0, 0.1, 0.02), TerrainZone("very_rough", 0.15, 100.0, 0.10),
@@ -204,27 +205,6 @@ def test_summary_counts_diverged_and_averages_the_rest(divergence_pair):
     table = bounded.to_pandas()
     assert list(table["status"] == "diverged") == list(bounded.diverged)
     assert table.loc[bounded.diverged, "deviation_mae"].isna().all()
-
-
-class NaNAfter(WheelController):
-    """Constant 11 V, except that run 0 gets a NaN command from step ``k_bad`` on (a numerically broken run)."""
-
-    name = "nan_after"
-
-    def __init__(self, k_bad):
-        self.k_bad = k_bad
-
-    def reset(self, w0):
-        super().reset(w0)
-        self.k = 0
-
-    def command(self, w, w_d, w_d_dot):
-        u = np.full(w.shape, 11.0)
-        if self.k >= self.k_bad:
-            u[0] = np.nan
-        self.k += 1
-        self.s = w_d - w
-        return u
 
 
 def test_non_finite_deviation_counts_as_divergence():

@@ -1,4 +1,4 @@
-"""Kinematics (MODEL.md section 2): the pure functions, and constant wheel speeds driven through the engine.
+"""Kinematics (docs/model.md §2): the pure functions, and constant wheel speeds driven through the engine.
 
 Closed forms used here:
 
@@ -89,7 +89,7 @@ def test_wrap_angle_examples():
     assert kinematics.wrap_angle(-math.pi) == pytest.approx(math.pi)  # (-pi, pi]: -pi maps to +pi
     assert kinematics.wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
     assert kinematics.wrap_angle(-7.0) == pytest.approx(-7.0 + 2 * math.pi)
-    np.testing.assert_allclose(kinematics.wrap_angle(np.array([0.5, 2 * math.pi + 0.5, -2 * math.pi + 0.5])),
+    np.testing.assert_allclose(np.vectorize(kinematics.wrap_angle)(np.array([0.5, 2 * math.pi + 0.5, -2 * math.pi + 0.5])),
                                0.5, atol=1e-14)
 
 

@@ -1,4 +1,4 @@
-"""The wheel-space plant (MODEL.md sections 1 and 5) and the run metrics (section 7), against closed forms.
+"""The wheel-space plant (docs/model.md §1 and §5) and the run metrics (section 7), against closed forms.
 
 Plant: ``w' = -A w + g u + d`` with ``A = J^-1 B``, ``g = J^-1 K_u``. For a constant voltage and no disturbance
 the exact solution is ``w(t) = w_ss + expm(-A t) (w0 - w_ss)``, ``w_ss = A^-1 g u = K_u u / B``; explicit Euler
@@ -47,7 +47,7 @@ def test_robot_matrices_closed_form():
     Jinv = np.linalg.inv([[j11, j12], [j12, j11]])
     np.testing.assert_allclose(ROBOT.drift_matrix, Jinv * B, rtol=1e-13)
     np.testing.assert_allclose(ROBOT.input_matrix, Jinv * 0.3 / 0.7, rtol=1e-13)
-    # MODEL.md Resolution: cruising at 1 m/s (33.3 rad/s) needs about 11 V
+    # docs/model.md Resolution: cruising at 1 m/s (33.3 rad/s) needs about 11 V
     assert 10.0 < B / (0.3 / 0.7) * (1.0 / r) < 12.0
 
 
@@ -91,7 +91,7 @@ def test_open_loop_steady_state_is_Ku_u_over_B():
 
 
 def test_rolling_resistance_disturbance_closed_form():
-    """d = -J^-1 mu m g R / 2 [1, 1] on both wheels while turning forward (MODEL.md 5); d_true records it."""
+    """d = -J^-1 mu m g R / 2 [1, 1] on both wheels while turning forward (docs/model.md §5); d_true records it."""
     mu = 0.05
     terrain = Terrain(zones=[TerrainZone("sand", 0.0, 0.0, mu)])
     sim = Simulation(controller=OpenLoop(10.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=0.2,

@@ -99,16 +99,13 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
 
     from ddmr_cli.engine.simulation import simulate
 
-    from ddmr_cli.engine.kernel import set_threads
-
     sim = build_simulation(cfg)
     seeds = seeds_of(cfg)
     # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
     threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
-    set_threads(threads)
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
-    result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress)
+    result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress, threads=threads)
     io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
     io.write_csv(out / io.METRICS_CSV, result.rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.rows(segments=True))

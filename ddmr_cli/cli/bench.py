@@ -2,7 +2,7 @@
 
 Prints the machine line, then
 1. engine throughput (simulated control steps per second on one core) at batch sizes 1, 50 and 1000 for each
-   controller, and the ratio to a straightforward baseline: a per-seed Python loop over the same model;
+   controller, on every core, as plain Python (the fallback), and the compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
 3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it;
 4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only).
@@ -40,47 +40,43 @@ def machine_line() -> str:
             f"python {platform.python_version()}, numpy {np.__version__}")
 
 
-def _simulation(controller: str, duration: float, engine: str = "auto"):
+def _simulation(controller: str, duration: float):
     from ddmr_cli.cli.config import build_simulation, compose_config
 
-    cfg = compose_config([f"controller={controller}", f"simulation.duration={duration}", f"simulation.engine={engine}"])
-    return build_simulation(cfg)
+    return build_simulation(compose_config([f"controller={controller}", f"simulation.duration={duration}"]))
 
 
-def engine_throughput(batch: int, controller: str, duration: float, engine: str = "auto") -> float:
+def engine_throughput(batch: int, controller: str, duration: float, threads: int = 1) -> float:
     """Simulated control steps per second (runs x steps / wall time) of one batch."""
     from ddmr_cli.engine.simulation import simulate
 
-    sim = _simulation(controller, duration, engine)
+    sim = _simulation(controller, duration)
     started = time.perf_counter()
-    simulate(sim, range(batch))
+    simulate(sim, range(batch), threads=threads)
     return batch * sim.n_steps / (time.perf_counter() - started)
 
 
-def per_seed_loop_throughput(n_seeds: int, controller: str, duration: float) -> float:
-    """The baseline: the same model in the straightforward numpy engine, one seed at a time in a Python loop."""
-    from ddmr_cli.engine.simulation import simulate
-
-    sim = _simulation(controller, duration, "numpy")
-    started = time.perf_counter()
-    for seed in range(n_seeds):
-        simulate(sim, [seed])
-    return n_seeds * sim.n_steps / (time.perf_counter() - started)
+def python_throughput(controller: str, duration: float) -> float:
+    """The same laws run as plain Python (``NUMBA_DISABLE_JIT=1``, the fallback where numba is missing)."""
+    code = ("import time; from ddmr_cli.cli.bench import _simulation; from ddmr_cli import simulate; "
+            f"sim = _simulation({controller!r}, {duration}); t = time.perf_counter(); simulate(sim, [0, 1]); "
+            "print(2 * sim.n_steps / (time.perf_counter() - t))")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+                         capture_output=True, text=True, check=True).stdout
+    return float(out.split()[-1])
 
 
 def compile_time() -> tuple[float, float]:
-    """Seconds of a first tiny run with an empty numba cache (compilation) and with the cache filled."""
-    code = ("import time; t = time.perf_counter(); from ddmr_cli import Simulation, simulate, SMC, PID, "
+    """Seconds of a first tiny run with empty caches (compilation) and with the caches filled."""
+    code = ("import time; t = time.perf_counter(); from ddmr_cli import Simulation, simulate, SMC, "
             "NonlinearDisturbanceObserver, RBFNetworkObserver; "
             "simulate(Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(), nn=RBFNetworkObserver()), "
             "duration=0.01), [0]); print(time.perf_counter() - t)")
     cache = tempfile.mkdtemp(prefix="ddmr-numba-cache-")
     try:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        cold = float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                                    check=True).stdout)
-        warm = float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                                    check=True).stdout)
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache, "DDMR_CACHE_DIR": cache}
+        cold, warm = (float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                           check=True).stdout) for _ in range(2))
     finally:
         shutil.rmtree(cache, ignore_errors=True)
     return cold, warm
@@ -103,51 +99,38 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="ddmr bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="tiny sizes (seconds): keeps the script from rotting")
     parser.add_argument("--skip-e2e", action="store_true", help="engine figures only")
-    parser.add_argument("--engine", choices=("auto", "numpy"), default="auto",
-                        help="numpy: every figure with the numpy engine (the 'before' of the compiled engine)")
     args = parser.parse_args(argv)
-    quick, engine = args.quick, args.engine
+    quick = args.quick
     print(machine_line())
-    print(f"engine: {engine}")
     print(f"numbers: {'QUICK (tiny sizes, not the targets)' if quick else 'full'}")
 
-    from ddmr_cli.engine.kernel import set_threads
+    from ddmr_cli.compiled import thread_count
 
     print("\n1. engine throughput, simulated control steps per second (runs x steps / wall)")
     batches = (1, 10) if quick else (1, 50, 1000)
     durations = {1: 0.3, 10: 0.3} if quick else {1: 3.0, 50: 5.0, 1000: 1.0}
-    set_threads(1)
     print(f"   one core (1 thread)" + "".join(f"{'batch ' + str(b):>16}" for b in batches))
     for controller in CONTROLLERS:
         engine_throughput(1, controller, 0.02)  # warm-up (imports, cache load)
-        figures = [engine_throughput(b, controller, durations[b], engine) for b in batches]
+        figures = [engine_throughput(b, controller, durations[b]) for b in batches]
         print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
-    cores = set_threads(0)
-    big = batches[-1]
-    print(f"   all {cores} cores, batch {big}, smc_ndo_nno: "
-          f"{engine_throughput(big, 'smc_ndo_nno', durations[big], engine) / 1e6:.3f} M/s")
-    set_threads(1)
-    n_loop, loop_duration = (2, 0.3) if quick else (5, 2.0)
-    batch_ref = 10 if quick else 50
-    loop = per_seed_loop_throughput(n_loop, "smc_ndo_nno", loop_duration)
-    numpy_batched = engine_throughput(batch_ref, "smc_ndo_nno", loop_duration, "numpy")
-    batched = engine_throughput(batch_ref, "smc_ndo_nno", loop_duration)
-    print(f"   baseline, smc_ndo_nno, one core: numpy engine one seed at a time in a Python loop {loop / 1e6:.3f} M/s; "
-          f"numpy engine batched at {batch_ref} {numpy_batched / 1e6:.3f} M/s; compiled batched at {batch_ref} "
-          f"{batched / 1e6:.3f} M/s = {batched / loop:.0f}x the loop")
-    if engine != "numpy":
-        cold, warm = compile_time()
-        print(f"   compiled engine warm-up: first run with an empty cache {cold:.2f} s (compilation), "
-              f"with the on-disk cache {warm:.2f} s (every later process)")
-    print("   target >= 1 M/s per core at batch 50 for every controller")
-    set_threads(0)
+    cores, big = thread_count(0), batches[-1]
+    one = engine_throughput(big, "smc_ndo_nno", durations[big], threads=1)
+    many = engine_throughput(big, "smc_ndo_nno", durations[big], threads=0)
+    print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({many / one:.2f}x one thread)")
+    python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
+    print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
+          f"compiled is {one / python:.0f}x that")
+    cold, warm = compile_time()
+    print(f"   warm-up: first run with empty caches {cold:.2f} s (compilation), with the on-disk cache {warm:.2f} s "
+          "(every later process)")
     if args.skip_e2e:
         return 0
 
     work = Path(tempfile.mkdtemp(prefix="ddmr-bench-"))
     try:
         print("\n2. single `ddmr run` (process start to exit, with plots)")
-        extra = [f"simulation.engine={engine}"]
+        extra: list[str] = []
         run_args = ["run", "run.progress=false", f"hydra.run.dir={work / 'single'}", *extra]
         if quick:
             run_args += ["simulation.duration=1.0", "run.n_runs=5"]
@@ -163,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         wall, peak = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work)
         print(f"   report wall {wall:.2f} s, peak memory {peak:.0f} MB   (target < 15 s)")
 
-        n_seeds = 200 if quick else (10_000 if engine != "numpy" else 1_000)
+        n_seeds = 200 if quick else 10_000
         print(f"\n4. one {n_seeds}-seed scenario-1 run of 15 s (metrics only)")
         wall, peak = _ddmr(["run", f"run.n_runs={n_seeds}", "run.keep_series=[]", "run.plots=false",
                             "run.progress=false", f"hydra.run.dir={work / 'many'}", *extra], work)

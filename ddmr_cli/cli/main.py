@@ -102,7 +102,7 @@ def prevalidate(overrides: list[str], multirun: bool, config_name: str = "config
     from omegaconf.errors import OmegaConfBaseException
 
     from ddmr_cli.cli import sweep
-    from ddmr_cli.cli.config import build_simulation, compose_config, validate_config
+    from ddmr_cli.cli.config import compose_config, validate_config
     from ddmr_cli.errors import ConfigError
 
     try:
@@ -120,8 +120,7 @@ def prevalidate(overrides: list[str], multirun: bool, config_name: str = "config
         plan = []
         for i, job in enumerate(jobs):
             cfg = base if (i == 0 and job == fixed) else compose_config(job, config_name)
-            validate_config(cfg)
-            build_simulation(cfg)  # derived model numbers (J^-1, controller gains) fail here, not in a job
+            validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here, not in a job
             plan.append({"dir": sweep.job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), "overrides": job})
     except ConfigError as exc:
         return _fail(str(exc))

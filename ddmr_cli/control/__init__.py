@@ -1,10 +1,12 @@
-"""Wheel-speed controllers behind one protocol (:class:`WheelController`)."""
+"""Wheel-speed controllers (one module per law) and the Kanayama outer loop (docs/model.md §3, §6)."""
 
-from ddmr_cli.control.base import SWITCHING_FUNCTIONS, WheelController
-from ddmr_cli.control.observers import NonlinearDisturbanceObserver, RBFNetworkObserver
+from ddmr_cli.control.base import WheelController
+from ddmr_cli.control.ndo import NonlinearDisturbanceObserver
 from ddmr_cli.control.open_loop import OpenLoop
+from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.control.pid import PID
-from ddmr_cli.control.smc import SMC
+from ddmr_cli.control.rbf import RBFNetworkObserver
+from ddmr_cli.control.smc import SMC, SWITCHING_FUNCTIONS
 
-__all__ = ["WheelController", "PID", "SMC", "OpenLoop", "NonlinearDisturbanceObserver",
-           "RBFNetworkObserver", "SWITCHING_FUNCTIONS"]
+__all__ = ["WheelController", "PID", "SMC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
+           "Kanayama", "SWITCHING_FUNCTIONS"]

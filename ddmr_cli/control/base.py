@@ -1,81 +1,88 @@
-"""The wheel-controller protocol every controller implements, and shared pieces (switching functions).
+"""What every wheel-speed controller is: a Python object holding its parameters, and a module of laws.
 
-A controller acts on both wheels at once, for a batch of runs: every array has shape ``(n_runs, 2)``
-with wheels ordered (right, left). Per step the engine calls
+The engine (:mod:`ddmr_cli.engine.stepper`) runs a controller through three laws that its module defines, per
+run and step, on both wheels (right, left):
 
-1. ``command(w, w_d, w_d_dot)`` -> the unsaturated voltage, having set ``s``, ``d_hat_ndo``, ``d_hat_nn``;
-2. ``update(w, u_applied, u_command)`` -> advance internal states (integrators, observers) by one step.
+``start(p, st, w0_R, w0_L)``
+    Set the run's state record ``st`` at the first step, given the initial wheel speeds [rad/s].
+``command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L)``
+    At step ``k``, from the wheel speeds ``w``, their references ``w_d`` and ``w_d'``, return
+    ``(u_R, u_L, s_R, s_L, dndo_R, dndo_L, dnn_R, dnn_L)``: the unsaturated voltage [V], the sliding variable
+    (the speed error for controllers without a surface) [rad/s] and the disturbance estimates [rad/s^2] of an
+    NDO-like observer and of a learning observer (0 where the controller has none).
+``update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L)``
+    Advance the state by one step, given the applied voltage ``u``, the command ``uc`` and whether each wheel
+    saturated.
 
-``bind(model, dt)`` gives it the nominal model and the step once, ``reset(w0)`` starts a batch.
-Adding a controller is a new module with a subclass of :class:`WheelController` plus a YAML file
-in ``conf/controller``.
+``p`` is the named tuple :meth:`WheelController.law_parameters` returns and ``st`` one record of the structured
+array whose fields :meth:`WheelController.state_fields` lists. Adding a controller is one module with a
+subclass and its three laws, plus a YAML file in ``conf/controller`` (see docs/extending.md): the engine,
+the compile cache, determinism and validation come with it.
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from types import ModuleType
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
+from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel
 
-SwitchingFunction = Callable[[np.ndarray], np.ndarray]
+#: Largest stable ``dt * rate`` of a first-order mode under the plant's integrator (explicit Euler: 2, RK4: 2.78)
+STABILITY_LIMIT = {"euler": 2.0, "rk4": 2.78}
 
 
-def _sign(x: np.ndarray) -> np.ndarray:
-    return np.sign(x)
+class StepRate(NamedTuple):
+    """A first-order rate [1/s] the step ``dt`` must resolve, and what it is (for the error message)."""
 
-
-def _sat(x: np.ndarray) -> np.ndarray:
-    return np.minimum(np.maximum(x, -1.0), 1.0)
-
-
-SWITCHING_FUNCTIONS: dict[str, SwitchingFunction] = {"sign": _sign, "sat": _sat, "tanh": np.tanh}
-
-
-def per_wheel(value, name: str) -> np.ndarray:
-    """A gain given as a scalar (both wheels) or as a (right, left) pair, as an array of shape (2,)."""
-    arr = np.broadcast_to(np.asarray(value, dtype=float), (2,)).copy()
-    if not np.all(np.isfinite(arr)):
-        from ddmr_cli.errors import ConfigError
-
-        raise ConfigError(name, value, "must be finite")
-    return arr
-
-
-def compact(arr: np.ndarray):
-    """A per-wheel gain as a scalar when both wheels share it, else as a [right, left] list."""
-    return float(arr[0]) if arr[0] == arr[1] else arr.tolist()
+    what: str
+    rate: float
 
 
 class WheelController:
-    """Base class: holds the nominal model, the step and the per-step diagnostics.
+    """Base class of the wheel-speed controllers (docs/model.md §6).
 
-    Attributes set by :meth:`command` for the engine's time series and metrics:
-    ``s`` (sliding variable; the speed error for controllers without a surface),
-    ``d_hat_ndo`` and ``d_hat_nn`` (the observers' parts of the disturbance estimate).
+    Subclasses set :attr:`laws` to the module that defines their ``start``, ``command`` and ``update`` laws,
+    and implement :meth:`law_parameters`, :meth:`state_fields` and :meth:`parameters`. Their constructors check
+    every value (raising :class:`~ddmr_cli.errors.ConfigError` with the config key), and :meth:`check_step`
+    refuses a step ``dt`` at which their own sampled loops are unstable.
     """
 
     #: short name used in tables and plots
     name: str = "controller"
+    #: the module whose laws the engine runs for this controller
+    laws: ModuleType
 
-    def bind(self, model: NominalModel, dt: float) -> "WheelController":
-        """Attach the nominal model the controller believes in and the control step [s]."""
-        self.model, self.dt = model, dt
-        return self
-
-    def reset(self, w0: np.ndarray) -> None:
-        """Start a batch whose wheel speeds are ``w0`` (shape ``(n_runs, 2)``)."""
-        zeros = np.zeros_like(w0)
-        self.s, self.d_hat_ndo, self.d_hat_nn = zeros, zeros, zeros
-
-    def command(self, w: np.ndarray, w_d: np.ndarray, w_d_dot: np.ndarray) -> np.ndarray:
-        """Unsaturated voltage command ``u`` (shape ``(n_runs, 2)``)."""
+    def law_parameters(self, nominal: NominalModel, dt: float) -> NamedTuple:
+        """The parameters as the laws take them (a named tuple of numbers, tuples and arrays)."""
         raise NotImplementedError
 
-    def update(self, w: np.ndarray, u_applied: np.ndarray, u_command: np.ndarray) -> None:
-        """Advance internal states by one step ``dt``, given the voltage actually applied."""
+    def state_fields(self) -> list[tuple]:
+        """The fields of one run's state record (a numpy structured dtype's field list)."""
+        return [("unused", "f8")]
 
     def parameters(self) -> dict[str, object]:
         """The controller's parameters, for the report's Table 3."""
         return {}
+
+    def step_rates(self, nominal: NominalModel) -> list[StepRate]:
+        """First-order rates of the controller's own loops that ``dt * rate`` must keep below the
+        integrator's stability limit (see :meth:`check_step`)."""
+        return []
+
+    def check_step(self, nominal: NominalModel, dt: float, integrator: str) -> None:
+        """Raise ConfigError on ``simulation.dt`` when a loop of this controller is unstable at ``dt``."""
+        limit = STABILITY_LIMIT[integrator]
+        for what, rate in self.step_rates(nominal):
+            if dt * rate >= limit:
+                raise ConfigError("simulation.dt", dt,
+                                  f"must be < {limit / rate:.3g} s for {integrator} with {what} = {rate:.3g} 1/s")
+
+    def initial_state(self, n_runs: int) -> np.ndarray:
+        """A zeroed state record per run (``start`` sets the initial values at the first step)."""
+        return np.zeros(n_runs, dtype=np.dtype(self.state_fields()))
+
+
+__all__ = ["WheelController", "StepRate", "STABILITY_LIMIT"]

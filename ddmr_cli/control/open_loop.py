@@ -2,13 +2,37 @@
 
 from __future__ import annotations
 
-import numpy as np
+import sys
+from typing import NamedTuple
 
-from ddmr_cli.control.base import WheelController, compact, per_wheel
+from ddmr_cli.compiled import law
+from ddmr_cli.checks import compact, finite, per_wheel
+from ddmr_cli.control.base import WheelController
+from ddmr_cli.model.robot import NominalModel
+
+
+class OpenLoopParameters(NamedTuple):
+    voltage: tuple  # (u_R, u_L) [V]
+
+
+@law
+def start(p, st, w0_R, w0_L):
+    """No state."""
+
+
+@law
+def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
+    """``u = (u_R, u_L)`` whatever the wheel speeds; ``s`` reports the speed error."""
+    return p.voltage[0], p.voltage[1], wd_R - w_R, wd_L - w_L, 0.0, 0.0, 0.0, 0.0
+
+
+@law
+def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
+    """No state."""
 
 
 class OpenLoop(WheelController):
-    """Apply a constant voltage ``(u_R, u_L)`` whatever the wheel speeds.
+    """Apply a constant voltage ``(u_R, u_L)``.
 
     Parameters
     ----------
@@ -17,19 +41,13 @@ class OpenLoop(WheelController):
     """
 
     name = "open_loop"
+    laws = sys.modules[__name__]
 
     def __init__(self, voltage=0.0) -> None:
-        self.voltage = per_wheel(voltage, "controller.voltage")
+        self.voltage = per_wheel("controller.voltage", voltage, finite)
 
-    def command(self, w, w_d, w_d_dot):
-        self.s = w_d - w
-        return np.broadcast_to(self.voltage, w.shape).copy()
-
-    def kernel_spec(self, w0):
-        """The compiled form (:mod:`ddmr_cli.engine.kernel`)."""
-        from ddmr_cli.engine import kernel
-
-        return kernel.OPEN_LOOP, self.voltage.copy(), np.zeros(0), np.zeros((w0.shape[0], 1))
+    def law_parameters(self, nominal: NominalModel, dt: float) -> OpenLoopParameters:
+        return OpenLoopParameters(self.voltage)
 
     def parameters(self):
         return {"voltage": compact(self.voltage)}

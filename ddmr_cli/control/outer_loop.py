@@ -1,19 +1,20 @@
-"""Outer-loop kinematic controller: Kanayama et al. (1990) (MODEL.md section 3, Resolution).
+"""Outer-loop kinematic controller: Kanayama et al. (1990) (docs/model.md §3).
 
-The paper only says "an outer-loop kinematic controller"; MODEL.md fixes Kanayama's law
+The paper only says "an outer-loop kinematic controller"; the model doc fixes Kanayama's law
 ``v_d = v_r cos e_th + k_x e_x``, ``omega_d = omega_r + v_r (k_y e_y + k_th sin e_th)``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from typing import NamedTuple
 
-import numpy as np
+from ddmr_cli.checks import non_negative
+from ddmr_cli.compiled import law
 
 
-@dataclass(frozen=True)
-class Kanayama:
-    """Kanayama tracking law (MODEL.md 3).
+class Kanayama(NamedTuple):
+    """Kanayama tracking gains (docs/model.md §3).
 
     Parameters
     ----------
@@ -29,8 +30,20 @@ class Kanayama:
     k_y: float = 25.0
     k_theta: float = 10.0
 
-    def command(self, e_x, e_y, e_theta, v_r: float, omega_r: float):
-        """Desired body velocities ``(v_d, omega_d)`` from the robot-frame errors."""
-        v_d = v_r * np.cos(e_theta) + self.k_x * e_x
-        omega_d = omega_r + v_r * (self.k_y * e_y + self.k_theta * np.sin(e_theta))
-        return v_d, omega_d
+    def validate(self) -> None:
+        """Every gain finite and >= 0 (ConfigError on ``outer_loop.<gain>``)."""
+        for name, value in zip(self._fields, self):
+            non_negative(f"outer_loop.{name}", value)
+
+    def command(self, e_x, e_y, e_theta, v_r, omega_r):
+        """Desired body velocities ``(v_d, omega_d)`` from the robot-frame errors (the law below)."""
+        return kanayama(self, e_x, e_y, e_theta, v_r, omega_r)
+
+
+@law
+def kanayama(gains, e_x, e_y, e_theta, v_r, omega_r):
+    """Kanayama's law (docs/model.md §3): ``v_d = v_r cos e_th + k_x e_x`` [m/s],
+    ``omega_d = omega_r + v_r (k_y e_y + k_th sin e_th)`` [rad/s]."""
+    v_d = v_r * math.cos(e_theta) + gains.k_x * e_x
+    omega_d = omega_r + v_r * (gains.k_y * e_y + gains.k_theta * math.sin(e_theta))
+    return v_d, omega_d

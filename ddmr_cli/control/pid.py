@@ -1,60 +1,128 @@
-"""PID wheel-speed controller, the paper's linear baseline (Table 3; MODEL.md section 6)."""
+"""PID wheel-speed controller, the paper's linear baseline (Table 3; docs/model.md §6).
+
+``u = K_p e + K_i int e + K_d e'`` on the wheel-speed error ``e = w_d - w``, with no feed-forward; ``e'`` is
+the backward difference of ``e`` (zero at the first step). Anti-windup by conditional integration: the
+integrator holds while a wheel is saturated and its error would drive it further into saturation.
+"""
 
 from __future__ import annotations
 
+import math
+import sys
+from typing import NamedTuple
+
 import numpy as np
 
-from ddmr_cli.control.base import WheelController, compact, per_wheel
+from ddmr_cli.compiled import law
+from ddmr_cli.checks import compact, per_wheel
+from ddmr_cli.control.base import WheelController
+from ddmr_cli.errors import ConfigError
+from ddmr_cli.model.robot import NominalModel, sign
+
+
+class PIDParameters(NamedTuple):
+    kp: tuple  # (right, left) [V s/rad]
+    ki: tuple  # [V/rad]
+    kd: tuple  # [V s^2/rad]
+    anti_windup: bool
+    dt: float  # [s]
+
+
+@law
+def start(p, st, w0_R, w0_L):
+    """The integral and the previous error start at zero."""
+    st["integral"][0] = 0.0
+    st["integral"][1] = 0.0
+    st["e_prev"][0] = 0.0
+    st["e_prev"][1] = 0.0
+
+
+@law
+def pid(kp, ki, kd, e, integral, e_dot):
+    """``u = K_p e + K_i int e + K_d e'`` [V] (Table 3)."""
+    return kp * e + ki * integral + kd * e_dot
+
+
+@law
+def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
+    """PID per wheel; ``e' = (e_k - e_k-1) / dt``, 0 at the first step."""
+    e_R, e_L = wd_R - w_R, wd_L - w_L
+    ed_R = 0.0 if k == 0 else (e_R - st["e_prev"][0]) * (1.0 / p.dt)
+    ed_L = 0.0 if k == 0 else (e_L - st["e_prev"][1]) * (1.0 / p.dt)
+    st["e_prev"][0] = e_R
+    st["e_prev"][1] = e_L
+    u_R = pid(p.kp[0], p.ki[0], p.kd[0], e_R, st["integral"][0], ed_R)
+    u_L = pid(p.kp[1], p.ki[1], p.kd[1], e_L, st["integral"][1], ed_L)
+    return u_R, u_L, e_R, e_L, 0.0, 0.0, 0.0, 0.0
+
+
+@law
+def integrand(e, u_command, saturated, anti_windup):
+    """What the integrator adds per second: ``e``, or 0 while saturated with ``e`` pushing further in."""
+    if anti_windup and saturated and sign(e) == sign(u_command):
+        return 0.0
+    return e
+
+
+@law
+def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
+    """One Euler step of the integral of the error, with conditional integration."""
+    st["integral"][0] += p.dt * integrand(wd_R - w_R, uc_R, sat_R, p.anti_windup)
+    st["integral"][1] += p.dt * integrand(wd_L - w_L, uc_L, sat_L, p.anti_windup)
+
+
+def _pd_spectral_radius(dt_g_kp: float, g_kd: float) -> float:
+    """Largest |root| of the sampled wheel-speed loop under PD with a backward-difference derivative,
+    ``e_k+1 = (1 - dt g K_p - g K_d) e_k + g K_d e_k-1`` (the integral term is slow and left out).
+
+    The roots of ``z^2 - a z - b`` in closed form (no LAPACK, so the verdict is the same on every CPU):
+    real ``(a +- sqrt(a^2 + 4 b)) / 2``, or a complex pair of modulus ``sqrt(-b)``."""
+    a, b = 1.0 - dt_g_kp - g_kd, g_kd
+    disc = a * a + 4.0 * b
+    if disc >= 0.0:
+        root = math.sqrt(disc)
+        return max(abs(0.5 * (a + root)), abs(0.5 * (a - root)))
+    return math.sqrt(-b)
 
 
 class PID(WheelController):
-    """PID on the wheel-speed error ``e = w_d - w`` with no feed-forward (MODEL.md 6).
-
-    ``u = K_p e + K_i int e + K_d e'``; ``e'`` is the backward difference of ``e`` (zero at the first step).
-    Anti-windup: the integrator is held while the output is saturated and the error would drive it further
-    into saturation (conditional integration).
+    """PID on the wheel-speed error (docs/model.md §6).
 
     Parameters
     ----------
     kp, ki, kd : float or (float, float)
-        Gains per wheel (Table 3: 5, 0.1, 0.01).
+        Gains per wheel [V s/rad, V/rad, V s^2/rad] (Table 3: 5, 0.1, 0.01).
     anti_windup : bool
         Hold the integrator while saturated (default True).
     """
 
     name = "pid"
+    laws = sys.modules[__name__]
 
     def __init__(self, kp=5.0, ki=0.1, kd=0.01, anti_windup: bool = True) -> None:
-        self.kp = per_wheel(kp, "controller.kp")
-        self.ki = per_wheel(ki, "controller.ki")
-        self.kd = per_wheel(kd, "controller.kd")
+        self.kp = per_wheel("controller.kp", kp)
+        self.ki = per_wheel("controller.ki", ki)
+        self.kd = per_wheel("controller.kd", kd)
+        if not isinstance(anti_windup, (bool, np.bool_)):
+            raise ConfigError("controller.anti_windup", anti_windup, "must be true or false")
         self.anti_windup = bool(anti_windup)
 
-    def reset(self, w0):
-        super().reset(w0)
-        self.integral = np.zeros_like(w0)
-        self.e_prev = None
+    def law_parameters(self, nominal: NominalModel, dt: float) -> PIDParameters:
+        return PIDParameters(self.kp, self.ki, self.kd, self.anti_windup, float(dt))
 
-    def command(self, w, w_d, w_d_dot):
-        e = w_d - w
-        e_dot = np.zeros_like(e) if self.e_prev is None else (e - self.e_prev) / self.dt
-        self.e_prev = e
-        self.s = e
-        return self.kp * e + self.ki * self.integral + self.kd * e_dot
+    def state_fields(self):
+        return [("integral", "f8", 2), ("e_prev", "f8", 2)]
 
-    def update(self, w, u_applied, u_command):
-        e = self.s
-        if self.anti_windup:
-            winding_up = (u_applied != u_command) & (np.sign(e) == np.sign(u_command))
-            e = np.where(winding_up, 0.0, e)
-        self.integral = self.integral + self.dt * e
-
-    def kernel_spec(self, w0):
-        """The compiled form (:mod:`ddmr_cli.engine.kernel`): kind, parameters, centres, state (integral, e_prev)."""
-        from ddmr_cli.engine import kernel
-
-        params = np.concatenate([self.kp, self.ki, self.kd, [float(self.anti_windup)]])
-        return kernel.PID_KIND, params, np.zeros(0), np.zeros((w0.shape[0], 4))
+    def check_step(self, nominal: NominalModel, dt: float, integrator: str) -> None:
+        """The sampled PD loop ``e_k+1 = (1 - dt g K_p - g K_d) e_k + g K_d e_k-1`` must be stable (docs/model.md
+        §4): its spectral radius below 1 with ``g`` the nominal input gain's largest eigenvalue."""
+        g = max(nominal.jinv_p + nominal.jinv_q, nominal.jinv_p - nominal.jinv_q) * nominal.voltage_gain
+        kp, kd = max(self.kp), max(self.kd)
+        if _pd_spectral_radius(dt * g * kp, g * kd) >= 1.0:
+            stable = [h for h in np.geomspace(dt, dt * 1e-3, 61) if _pd_spectral_radius(h * g * kp, g * kd) < 1]
+            bound = f"must be < {stable[0]:.3g} s" if stable else "has no stable value"
+            raise ConfigError("simulation.dt", dt, f"{bound}: the sampled PD loop (controller.kp={kp:g}, "
+                                                   f"controller.kd={kd:g}) is unstable at this step")
 
     def parameters(self):
         return {"K_p": compact(self.kp), "K_i": compact(self.ki), "K_d": compact(self.kd),

@@ -1,28 +1,113 @@
-"""Sliding-mode wheel-speed controller with optional disturbance observers (paper 3.1-3.3; MODEL.md 6).
+"""Sliding-mode wheel-speed controller with optional disturbance observers (paper 3.1-3.3; docs/model.md §6).
 
-SMC, SMC-NDO and SMC-NDO-NNO are this one class with zero, one or two observers.
+SMC, SMC-NDO and SMC-NDO-NNO are this one law with zero, one or two observers (:mod:`ddmr_cli.control.ndo`,
+:mod:`ddmr_cli.control.rbf`).
+
+Surface ``proportional`` (the paper's (10)): ``s = e = w_d - w`` and
+``u = g^-1 (w_d' - f(w) + lambda s + K sw(s/Phi) - d_hat)`` (17), lambda read as the linear term of an
+exponential reaching law and Phi as the boundary layer (docs/model.md §6). Surface ``integral``:
+``s = e + lambda int e`` and ``u = g^-1 (w_d' - f(w) + lambda e + K sw(s/Phi) - d_hat)``, the equivalent control
+of that surface plus the switching term. ``d_hat`` is the sum of the observers' estimates (NDO (21), NN (24)).
 """
 
 from __future__ import annotations
 
+import math
+import sys
+from typing import NamedTuple
+
 import numpy as np
 
-from ddmr_cli.errors import ConfigError
-from ddmr_cli.control.base import SWITCHING_FUNCTIONS, WheelController, compact, per_wheel
-from ddmr_cli.control.observers import NonlinearDisturbanceObserver, RBFNetworkObserver
+from ddmr_cli.compiled import law
+from ddmr_cli.control import ndo, rbf
+from ddmr_cli.checks import compact, non_negative, one_of, per_wheel, positive
+from ddmr_cli.control.base import StepRate, WheelController
+from ddmr_cli.model.robot import NominalModel, sign, voltage_for
 
 SURFACES = ("proportional", "integral")
+#: the switching function sw of (15): sgn as printed, or its boundary-layer forms
+SWITCHING_FUNCTIONS = ("sign", "sat", "tanh")
+SIGN, SAT, TANH = range(3)
+
+
+class SMCParameters(NamedTuple):
+    lam: tuple  # lambda per wheel [1/s]
+    switching_gain: tuple  # K per wheel [rad/s^2]
+    boundary_layer: float  # Phi [rad/s]
+    integral_surface: bool
+    switching: int  # SIGN, SAT or TANH
+    nominal: NominalModel
+    dt: float  # [s]
+    has_ndo: bool
+    ndo: ndo.NDOParameters
+    has_nn: bool
+    nn: rbf.RBFParameters
+
+
+@law
+def surface(e, error_integral, lam, integral_surface):
+    """The sliding variable and the linear term of (17): ``(e, lambda e)`` for (10)'s ``s = e``, or
+    ``(e + lambda int e, lambda e)`` for the integral surface [rad/s, rad/s^2]."""
+    if integral_surface:
+        return e + lam * error_integral, lam * e
+    return e, lam * e
+
+
+@law
+def switching(s, boundary_layer, kind):
+    """``sw(s / Phi)`` of (15): ``sign(s)``, ``sat(s / Phi)`` or ``tanh(s / Phi)``."""
+    if kind == SIGN:
+        return sign(s) * 1.0
+    x = s * (1.0 / boundary_layer)
+    if kind == SAT:
+        return min(max(x, -1.0), 1.0)
+    return math.tanh(x)
+
+
+@law
+def start(p, st, w0_R, w0_L):
+    """Zero error integral and network weights; the NDO starts at ``d_hat(0) = 0``."""
+    st["error_integral"][0] = 0.0
+    st["error_integral"][1] = 0.0
+    st["weights"][:, :] = 0.0
+    if p.has_ndo:
+        ndo.start(p.ndo, st["z"], w0_R, w0_L)
+
+
+@law
+def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
+    """(17): ``u = g^-1 (w_d' - f(w) + linear + K sw(s/Phi) - d_hat)`` per wheel."""
+    s_R, linear_R = surface(wd_R - w_R, st["error_integral"][0], p.lam[0], p.integral_surface)
+    s_L, linear_L = surface(wd_L - w_L, st["error_integral"][1], p.lam[1], p.integral_surface)
+    dndo_R = dndo_L = dnn_R = dnn_L = 0.0
+    if p.has_ndo:
+        dndo_R, dndo_L = ndo.estimate(p.ndo, st["z"], w_R, w_L)
+    if p.has_nn:
+        dnn_R, dnn_L = rbf.estimate(p.nn, st["weights"], st["phi"], w_R, w_L)
+    a_R = wdd_R + linear_R + p.switching_gain[0] * switching(s_R, p.boundary_layer, p.switching) - (dndo_R + dnn_R)
+    a_L = wdd_L + linear_L + p.switching_gain[1] * switching(s_L, p.boundary_layer, p.switching) - (dndo_L + dnn_L)
+    u_R, u_L = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
+    st["s"][0] = s_R
+    st["s"][1] = s_L
+    st["d_hat_ndo"][0] = dndo_R
+    st["d_hat_ndo"][1] = dndo_L
+    return u_R, u_L, s_R, s_L, dndo_R, dndo_L, dnn_R, dnn_L
+
+
+@law
+def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
+    """Advance the error integral (integral surface), the NDO (22) and the network (25) by one step."""
+    if p.integral_surface:
+        st["error_integral"][0] += p.dt * (wd_R - w_R)
+        st["error_integral"][1] += p.dt * (wd_L - w_L)
+    if p.has_ndo:
+        ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["d_hat_ndo"][0], st["d_hat_ndo"][1], w_R, w_L, u_R, u_L)
+    if p.has_nn:
+        rbf.update(p.nn, p.dt, st["weights"], st["phi"], st["s"][0], st["s"][1])
 
 
 class SMC(WheelController):
-    """Sliding-mode control law (17) with the observers' estimate subtracted.
-
-    Surface ``proportional`` (the paper's (10)): ``s = e = w_d - w`` and
-    ``u = g^-1 (w_d' - f(w) + lambda s + K sw(s/Phi) - d_hat)`` (17), lambda read as the linear term of an
-    exponential reaching law and Phi as the boundary layer (MODEL.md 6, Resolution).
-    Surface ``integral``: ``s = e + lambda int e`` and ``u = g^-1 (w_d' - f(w) + lambda e + K sw(s/Phi) - d_hat)``,
-    the equivalent control of that surface plus the switching term.
-    ``d_hat`` is the sum of the observers' estimates (NDO (21), NN (24)); zero without observers.
+    """Sliding-mode control law (17) with the observers' estimate subtracted (docs/model.md §6).
 
     Parameters
     ----------
@@ -34,7 +119,6 @@ class SMC(WheelController):
         Phi [rad/s] (Table 3: 0.1); unused by ``switching='sign'``.
     surface : {'proportional', 'integral'}
     switching : {'sign', 'sat', 'tanh'}
-        The switching function ``sw`` of (15): ``sgn`` as printed, or its boundary-layer ``sat``/``tanh``.
     ndo : NonlinearDisturbanceObserver, optional
         The NDO of 3.2 (SMC-NDO); None for none.
     nn : RBFNetworkObserver, optional
@@ -43,89 +127,44 @@ class SMC(WheelController):
         Label in tables and plots.
     """
 
+    laws = sys.modules[__name__]
+
     def __init__(self, lam=25.0, switching_gain=12.0, boundary_layer: float = 0.1,
                  surface: str = "proportional", switching: str = "sat",
-                 ndo: NonlinearDisturbanceObserver | None = None, nn: RBFNetworkObserver | None = None,
+                 ndo: "ndo.NonlinearDisturbanceObserver | None" = None, nn: "rbf.RBFNetworkObserver | None" = None,
                  name: str = "smc") -> None:
-        self.lam = per_wheel(lam, "controller.lam")
-        self.switching_gain = per_wheel(switching_gain, "controller.switching_gain")
-        self.boundary_layer = float(boundary_layer)
-        if surface not in SURFACES:
-            raise ConfigError("controller.surface", surface, f"must be one of {', '.join(SURFACES)}")
-        if switching not in SWITCHING_FUNCTIONS:
-            raise ConfigError("controller.switching", switching,
-                              f"must be one of {', '.join(SWITCHING_FUNCTIONS)}")
-        self.surface, self.switching = surface, switching
-        self._sw = SWITCHING_FUNCTIONS[switching]
+        self.lam = per_wheel("controller.lam", lam, positive)
+        self.switching_gain = per_wheel("controller.switching_gain", switching_gain, non_negative)
+        self.boundary_layer = positive("controller.boundary_layer", boundary_layer)
+        self.surface = one_of("controller.surface", surface, SURFACES)
+        self.switching = one_of("controller.switching", switching, SWITCHING_FUNCTIONS)
         self.ndo, self.nn = ndo, nn
-        self.observers = [obs for obs in (ndo, nn) if obs is not None]
-        self.name = name
+        self.name = str(name)
 
-    def bind(self, model, dt):
-        super().bind(model, dt)
-        for obs in self.observers:
-            obs.bind(model, dt)
-        return self
+    def law_parameters(self, nominal: NominalModel, dt: float) -> SMCParameters:
+        ndo_params = self.ndo.law_parameters() if self.ndo is not None else ndo.NDOParameters((0.0, 0.0))
+        nn_params = (self.nn.law_parameters() if self.nn is not None
+                     else rbf.RBFParameters(np.zeros(1), 1.0, (0.0, 0.0)))
+        return SMCParameters(self.lam, self.switching_gain, self.boundary_layer, self.surface == "integral",
+                             SWITCHING_FUNCTIONS.index(self.switching), nominal, float(dt),
+                             self.ndo is not None, ndo_params, self.nn is not None, nn_params)
 
-    def reset(self, w0):
-        super().reset(w0)
-        self.error_integral = np.zeros_like(w0)
-        for obs in self.observers:
-            obs.reset(w0)
+    def state_fields(self):
+        n = self.nn.n_neurons if self.nn is not None else 1
+        return [("error_integral", "f8", 2), ("z", "f8", 2), ("weights", "f8", (2, n)), ("phi", "f8", n),
+                ("s", "f8", 2), ("d_hat_ndo", "f8", 2)]
 
-    def command(self, w, w_d, w_d_dot):
-        e = w_d - w
-        self.e = e
-        if self.surface == "integral":
-            s = e + self.lam * self.error_integral
-            linear = self.lam * e
-        else:
-            s = e
-            linear = self.lam * s
-        self.s = s
-        d_hat = None
-        if self.ndo is not None:
-            self.d_hat_ndo = d_hat = self.ndo.estimate(w)
-        if self.nn is not None:
-            self.d_hat_nn = self.nn.estimate(w)
-            d_hat = self.d_hat_nn if d_hat is None else d_hat + self.d_hat_nn
-        x = s if self.switching == "sign" else s * (1.0 / self.boundary_layer)
-        # (17): u = g^-1 (w_d' - f(w) + lambda s + K sw(s/Phi) - d_hat)
-        a = w_d_dot + linear + self.switching_gain * self._sw(x)
-        if d_hat is not None:
-            a = a - d_hat
-        return self.model.voltage_for(a, w)
-
-    def update(self, w, u_applied, u_command):
-        if self.surface == "integral":
-            self.error_integral = self.error_integral + self.dt * self.e
-        for obs in self.observers:
-            obs.update(w, u_applied, self.s)
-
-    def kernel_spec(self, w0):
-        """The compiled form (:mod:`ddmr_cli.engine.kernel`): kind, parameters, RBF centres, and the state
-        ``[int e (2), z (2), W^T (2 n)]`` with ``z(0) = -Gamma w(0)`` and ``W(0) = 0``."""
-        from ddmr_cli.engine import kernel
-
-        if (self.ndo is not None and type(self.ndo) is not NonlinearDisturbanceObserver) or (
-                self.nn is not None and type(self.nn) is not RBFNetworkObserver):
-            return None  # a custom observer: the numpy engine runs it
-        switching = {"sign": kernel.SWITCH_SIGN, "sat": kernel.SWITCH_SAT, "tanh": kernel.SWITCH_TANH}[self.switching]
-        ndo_gain = self.ndo.gain if self.ndo is not None else np.zeros(2)
-        nn = self.nn
-        params = np.concatenate([
-            self.lam, self.switching_gain, [self.boundary_layer, float(self.surface == "integral"), switching,
-                                            float(self.ndo is not None)], ndo_gain,
-            [float(nn is not None), nn.n_neurons if nn else 0, nn.width if nn else 1.0],
-            nn.learning_rate if nn else np.zeros(2)])
-        centers = nn.centers.copy() if nn is not None else np.zeros(0)
-        state = np.zeros((w0.shape[0], 4 + 2 * centers.size))
-        state[:, 2:4] = -ndo_gain * w0
-        return kernel.SMC_KIND, params, centers, state
+    def step_rates(self, nominal: NominalModel) -> list[StepRate]:
+        """The sliding variable's fastest closed-loop rate is ``lambda + K / Phi`` (inside the boundary layer),
+        and the NDO's error decays at ``L``."""
+        rates = [StepRate("controller.lam + switching_gain/boundary_layer",
+                          max(self.lam) + max(self.switching_gain) / self.boundary_layer)]
+        return rates + (self.ndo.step_rates() if self.ndo is not None else [])
 
     def parameters(self):
         params = {"lambda": compact(self.lam), "K": compact(self.switching_gain),
                   "Phi": self.boundary_layer, "surface": self.surface, "switching": self.switching}
-        for obs in self.observers:
-            params.update(obs.parameters())
+        for obs in (self.ndo, self.nn):
+            if obs is not None:
+                params.update(obs.parameters())
         return params

@@ -1,24 +1,22 @@
-"""Metrics of one run, computed as the run goes (MODEL.md section 7).
+"""Metrics of one run, computed as the run goes (docs/model.md §7).
 
-The engine hands over the per-step signals in chunks (run-major buffers); :func:`accumulate` adds them, run by
-run and step by step in time order, to running sums per run for the whole run, each terrain zone and each
-scenario phase. Memory does not grow with the duration, and the rounding is the same whatever the batch size
-and chunk size. The metrics are built from the sums in :meth:`MetricAccumulator.finalize`.
+The step loop calls :func:`accumulate` at every step of every run; it adds the step, in time order, to running
+sums per run for the whole run, each terrain zone and each scenario phase. Memory does not grow with the
+duration, and the rounding is the same whatever the batch size and chunk size. The metrics are built from the
+sums in :meth:`MetricAccumulator.finalize`.
 
 Chattering: total variation of the applied voltage per second (V/s), and the fraction of the variance of
 ``u`` that passes a 2nd-order Butterworth high-pass at ``hf_cutoff`` Hz (the "power above 10 Hz" of
-MODEL.md 7, computed online with the filter started at steady state for the first voltage).
+docs/model.md §7, computed online with the filter started at steady state for the first voltage).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import math
 
 import numpy as np
 
-from ddmr_cli.engine.kernel import _jit
+from ddmr_cli.compiled import law
 
 #: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
 SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturated",
@@ -53,26 +51,6 @@ METRICS: dict[str, tuple[str, str]] = {
 }
 
 
-@dataclass
-class StepSignals:
-    """One chunk of per-step signals: run-major arrays, shape ``(runs, steps[, 2])``; ``t`` and ``phase`` (steps,)."""
-
-    t: np.ndarray
-    dev: np.ndarray
-    e_x: np.ndarray
-    e_y: np.ndarray
-    e_theta: np.ndarray
-    u: np.ndarray
-    u_command: np.ndarray
-    w: np.ndarray
-    s: np.ndarray
-    d_true: np.ndarray
-    d_hat_ndo: np.ndarray
-    d_hat_nn: np.ndarray
-    zone: np.ndarray
-    phase: np.ndarray
-
-
 def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """2nd-order Butterworth high-pass by the bilinear transform with pre-warping, as one biquad
     ``[b0, b1, b2, 1, a1, a2]`` (what ``scipy.signal.butter(2, cutoff, 'highpass', fs=1/dt, output='sos')``
@@ -87,62 +65,66 @@ def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarr
     return sos, np.array([-b0, b0])
 
 
-@_jit
-def accumulate(sums, t, dev, e_x, e_y, e_th, u, u_cmd, w, s, d_true, d_ndo, d_nn, zone, phase, phase_base,
-               k_e, r_a, hp, hp_zi, hp_state, u_prev, started, dev_max, dev_final):
-    """Add a chunk of steps to ``sums[run, segment, column]`` (columns: :data:`SUMS`), run by run in time order.
+#: Per-run fields of the accumulator's state (a structured record, beside the engine's run state).
+ACCUMULATOR_FIELDS = [("u_prev", "f8", 2), ("hp_state", "f8", (2, 2)), ("started", "?"), ("dev_max", "f8"),
+                      ("dev_final", "f8")]
+
+
+@law
+def _add(sums, r, zone_segment, phase_segment, column, value):
+    """Add ``value`` to the run's whole-run, zone and phase sums of ``column``."""
+    sums[r, 0, column] += value
+    sums[r, zone_segment, column] += value
+    sums[r, phase_segment, column] += value
+
+
+@law
+def accumulate(sums, r, acc, zone_segment, phase_segment, t, dev, e_x, e_y, e_theta, saturated, u_R, u_L,
+               w_R, w_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, k_e, r_a, hp, hp_zi):
+    """Add one step of run ``r`` to ``sums[r, segment, column]`` (columns: :data:`SUMS`; docs/model.md §7).
 
     ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]`` (direct form II transposed, as ``scipy.signal.sosfilt``),
-    ``hp_state[run, wheel, 2]`` its state, started at ``hp_zi * u`` on the first step (no transient);
-    ``u_prev`` the last voltage of the previous chunk for the total variation.
+    its state ``acc["hp_state"]`` started at ``hp_zi * u`` on the first step (no transient); ``acc["u_prev"]`` is
+    the last voltage, for the total variation.
     """
-    n_runs, n_steps = dev.shape[0], dev.shape[1]
-    q = np.empty(sums.shape[2])
-    for r in range(n_runs):
-        for j in range(n_steps):
-            if not started[r]:
-                for k in range(2):
-                    u_prev[r, k] = u[r, j, k]
-                    hp_state[r, k, 0] = hp_zi[0] * u[r, j, k]
-                    hp_state[r, k, 1] = hp_zi[1] * u[r, j, k]
-                started[r] = True
-            d = dev[r, j]
-            q[0] = 1.0
-            q[1] = d
-            q[2] = d * d
-            q[3] = t[j] * d
-            q[4] = abs(e_x[r, j])
-            q[5] = abs(e_y[r, j])
-            q[6] = abs(e_th[r, j])
-            q[7] = 1.0 if (u[r, j, 0] != u_cmd[r, j, 0] or u[r, j, 1] != u_cmd[r, j, 1]) else 0.0
-            for k in range(2):
-                uk = u[r, j, k]
-                q[8 + k] = abs(uk - u_prev[r, k])
-                u_prev[r, k] = uk
-                q[10 + k] = uk * uk
-                q[12 + k] = uk * (uk - k_e * w[r, j, k]) / r_a
-                q[14 + k] = abs(d_true[r, j, k] - d_ndo[r, j, k] - d_nn[r, j, k])
-                q[16 + k] = abs(d_true[r, j, k] - d_ndo[r, j, k])
-                q[18 + k] = abs(s[r, j, k])
-                q[20 + k] = uk
-                y = hp[0] * uk + hp_state[r, k, 0]
-                hp_state[r, k, 0] = hp[1] * uk - hp[4] * y + hp_state[r, k, 1]
-                hp_state[r, k, 1] = hp[2] * uk - hp[5] * y
-                q[22 + k] = y * y
-                q[24 + k] = abs(uk)
-            z = 1 + zone[r, j]
-            p = phase_base + phase[j]
-            for c in range(q.shape[0]):
-                sums[r, 0, c] += q[c]
-                sums[r, z, c] += q[c]
-                sums[r, p, c] += q[c]
-            if d > dev_max[r]:
-                dev_max[r] = d
-            dev_final[r] = d
+    if not acc["started"]:
+        acc["u_prev"][0], acc["u_prev"][1] = u_R, u_L
+        acc["hp_state"][0, 0], acc["hp_state"][0, 1] = hp_zi[0] * u_R, hp_zi[1] * u_R
+        acc["hp_state"][1, 0], acc["hp_state"][1, 1] = hp_zi[0] * u_L, hp_zi[1] * u_L
+        acc["started"] = True
+    z, p = zone_segment, phase_segment
+    _add(sums, r, z, p, 0, 1.0)
+    _add(sums, r, z, p, 1, dev)
+    _add(sums, r, z, p, 2, dev * dev)
+    _add(sums, r, z, p, 3, t * dev)
+    _add(sums, r, z, p, 4, abs(e_x))
+    _add(sums, r, z, p, 5, abs(e_y))
+    _add(sums, r, z, p, 6, abs(e_theta))
+    _add(sums, r, z, p, 7, 1.0 if saturated else 0.0)
+    for k in range(2):
+        u = u_R if k == 0 else u_L
+        _add(sums, r, z, p, 8 + k, abs(u - acc["u_prev"][k]))
+        acc["u_prev"][k] = u
+        _add(sums, r, z, p, 10 + k, u * u)
+        _add(sums, r, z, p, 12 + k, u * (u - k_e * (w_R if k == 0 else w_L)) / r_a)
+        d, ndo, nn = (d_R, ndo_R, nn_R) if k == 0 else (d_L, ndo_L, nn_L)
+        _add(sums, r, z, p, 14 + k, abs(d - ndo - nn))
+        _add(sums, r, z, p, 16 + k, abs(d - ndo))
+        _add(sums, r, z, p, 18 + k, abs(s_R if k == 0 else s_L))
+        _add(sums, r, z, p, 20 + k, u)
+        y = hp[0] * u + acc["hp_state"][k, 0]
+        acc["hp_state"][k, 0] = hp[1] * u - hp[4] * y + acc["hp_state"][k, 1]
+        acc["hp_state"][k, 1] = hp[2] * u - hp[5] * y
+        _add(sums, r, z, p, 22 + k, y * y)
+        _add(sums, r, z, p, 24 + k, abs(u))
+    if dev > acc["dev_max"]:
+        acc["dev_max"] = dev
+    acc["dev_final"] = dev
 
 
 class MetricAccumulator:
-    """Running sums per run for the whole run (segment 0), each zone and each phase.
+    """Running sums per run for the whole run (segment 0), each zone and each phase, filled by
+    :func:`accumulate` inside the step loop; :meth:`finalize` turns them into the metrics.
 
     Parameters
     ----------
@@ -150,36 +132,28 @@ class MetricAccumulator:
     dt : float
         Step [s].
     zone_names, phase_names : list of str
-    back_emf_constant, armature_resistance : float
-        For the electrical power ``u i``, ``i = (u - k_e w) / R_a``.
     hf_cutoff : float
         High-pass cutoff for the chattering spectrum fraction [Hz].
     """
 
-    def __init__(self, n_runs: int, dt: float, zone_names, phase_names, back_emf_constant: float,
-                 armature_resistance: float, hf_cutoff: float = 10.0) -> None:
+    def __init__(self, n_runs: int, dt: float, zone_names, phase_names, hf_cutoff: float = 10.0) -> None:
         self.n_runs, self.dt = n_runs, dt
         self.zone_names, self.phase_names = list(zone_names), list(phase_names)
         self.segments = ["total"] + [f"zone:{z}" for z in self.zone_names] + [f"phase:{p}" for p in self.phase_names]
-        self.k_e, self.r_a = float(back_emf_constant), float(armature_resistance)
+        self.phase_base = 1 + len(self.zone_names)
         self.sums = np.zeros((n_runs, len(self.segments), N_SUMS))
-        self.dev_max = np.full(n_runs, -np.inf)
-        self.dev_final = np.full(n_runs, np.nan)
-        self.u_prev = np.zeros((n_runs, 2))
-        self.started = np.zeros(n_runs, dtype=np.bool_)
         self.hf_cutoff = hf_cutoff
         self.hp, self.hp_zi = butterworth_highpass(hf_cutoff, dt)
-        self.hp_state = np.zeros((n_runs, 2, 2))
 
-    def consume(self, sig: StepSignals) -> None:
-        """Add one chunk of steps."""
-        accumulate(self.sums, np.ascontiguousarray(sig.t), sig.dev, sig.e_x, sig.e_y, sig.e_theta, sig.u,
-                   sig.u_command, sig.w, sig.s, sig.d_true, sig.d_hat_ndo, sig.d_hat_nn, sig.zone,
-                   np.ascontiguousarray(sig.phase.astype(np.int64)), 1 + len(self.zone_names), self.k_e, self.r_a,
-                   self.hp, self.hp_zi, self.hp_state, self.u_prev, self.started, self.dev_max, self.dev_final)
+    @staticmethod
+    def initial_state(state: np.ndarray) -> None:
+        """Set the accumulator fields of a run-state array (:data:`ACCUMULATOR_FIELDS`) before the first step."""
+        state["dev_max"] = -np.inf
+        state["dev_final"] = np.nan
+        state["started"] = False
 
-    def finalize(self) -> dict[str, np.ndarray]:
-        """Metrics per run and segment: ``{name: array (n_runs, n_segments)}`` (NaN where a segment is empty)."""
+    def finalize(self, state: np.ndarray) -> dict[str, np.ndarray]:
+        """Metrics per run and segment from the sums and the run-state array: ``{name: array (n_runs, n_segments)}`` (NaN where a segment is empty)."""
         col = {name: self.sums[:, :, i] for i, name in enumerate(SUMS)}
         S = {name: col[name] for name in SUMS if not name.endswith(("_R", "_L"))}
         for name in SUMS:
@@ -214,8 +188,8 @@ class MetricAccumulator:
                 "d_est_mae_ndo": (S["abs_dtilde_ndo"] / nw).mean(axis=-1),
                 "s_mae": (S["abs_s"] / nw).mean(axis=-1),
             }
-        total_only = {"deviation_max": np.where(np.isfinite(self.dev_max), self.dev_max, np.nan),
-                      "deviation_final": self.dev_final}
+        total_only = {"deviation_max": np.where(np.isfinite(state["dev_max"]), state["dev_max"], np.nan),
+                      "deviation_final": state["dev_final"]}
         for key, val in total_only.items():
             arr = np.full((self.n_runs, len(self.segments)), np.nan)
             arr[:, 0] = val

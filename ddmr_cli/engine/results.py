@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ddmr_cli.compiled import law
 from ddmr_cli.engine.metrics import METRICS
 
 if TYPE_CHECKING:  # pandas is imported only when a table is asked for
@@ -15,10 +16,23 @@ if TYPE_CHECKING:  # pandas is imported only when a table is asked for
 #: Time-series channels kept for the seeds asked for (one array per channel, shape (n_steps,)).
 SERIES_CHANNELS = (
     "t", "x", "y", "theta", "x_ref", "y_ref", "theta_ref", "e_x", "e_y", "e_theta", "deviation", "distance",
-    "w_right", "w_left", "w_d_right", "w_d_left", "u_right", "u_left", "s_right", "s_left",
+    "w_right", "w_left", "w_d_right", "w_d_left", "u_right", "u_left", "u_command_right", "u_command_left",
+    "s_right", "s_left",
     "d_true_right", "d_true_left", "d_hat_ndo_right", "d_hat_ndo_left", "d_hat_nn_right", "d_hat_nn_left",
     "roughness", "damping_scale", "zone",
 )
+
+
+@law
+def record(row, t, x, y, theta, x_ref, y_ref, theta_ref, e_x, e_y, e_theta, deviation, distance, w_R, w_L,
+           wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, roughness, damping_scale,
+           zone):
+    """Write one step of a kept run into ``row``, in the order of :data:`SERIES_CHANNELS`."""
+    row[0], row[1], row[2], row[3], row[4], row[5], row[6] = t, x, y, theta, x_ref, y_ref, theta_ref
+    row[7], row[8], row[9], row[10], row[11] = e_x, e_y, e_theta, deviation, distance
+    row[12], row[13], row[14], row[15], row[16], row[17], row[18], row[19] = w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L
+    row[20], row[21], row[22], row[23], row[24], row[25], row[26], row[27] = s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L
+    row[28], row[29], row[30] = roughness, damping_scale, zone
 
 
 @dataclass
@@ -51,7 +65,7 @@ class SimulationResult:
     dt: float = 1e-3
     duration: float = 0.0
     wall_time: float = 0.0
-    engine: str = "numpy"
+    engine: str = "compiled"
 
     def metric(self, name: str, segment: str = "total") -> np.ndarray:
         """One metric for every run, in seed order."""

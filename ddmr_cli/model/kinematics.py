@@ -1,57 +1,65 @@
-"""Differential-drive kinematics (MODEL.md section 2; the paper's (1)-(5)).
+"""Differential-drive kinematics (docs/model.md §2; the paper's (1)-(5)).
 
-All functions are vectorised: scalars or arrays with a leading run axis.
+Each function is a law on scalars: the engine runs these very definitions, compiled.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import math
+
+from ddmr_cli.compiled import law
 
 
-def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
-    """Wrap an angle into (-pi, pi] (MODEL.md 2)."""
-    wrapped = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
-    # np.mod can round up to exactly 2 pi (e.g. just above pi), which would give -pi: map it to pi
-    wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
-    return wrapped if np.ndim(wrapped) else float(wrapped)
+@law
+def wrap_angle(angle):
+    """Wrap an angle into (-pi, pi] (docs/model.md §2)."""
+    wrapped = math.pi - ((math.pi - angle) % (2.0 * math.pi))
+    # the modulo can round up to exactly 2 pi (e.g. just above pi), which would give -pi: map it to pi
+    return wrapped + 2.0 * math.pi if wrapped <= -math.pi else wrapped
 
 
-def forward(w_right, w_left, wheel_radius: float, half_track: float):
-    """Body velocities from wheel speeds, the paper's (1).
+@law
+def forward(w_right, w_left, wheel_radius, half_track):
+    """Body velocities from wheel speeds, the paper's (1): ``v = R (w_R + w_L) / 2``,
+    ``omega = R (w_R - w_L) / (2 L)``.
 
     Returns
     -------
     v, omega : linear [m/s] and angular [rad/s] velocity.
     """
-    v = wheel_radius * (w_right + w_left) / 2.0
-    omega = wheel_radius * (w_right - w_left) / (2.0 * half_track)
-    return v, omega
+    return wheel_radius * 0.5 * (w_right + w_left), (wheel_radius / (2.0 * half_track)) * (w_right - w_left)
 
 
-def inverse(v, omega, wheel_radius: float, half_track: float):
-    """Wheel speeds from body velocities, the paper's (4)-(5).
+@law
+def inverse(v, omega, wheel_radius, half_track):
+    """Wheel speeds from body velocities, the paper's (4)-(5): ``w_R,L = (v +- L omega) / R``.
 
     Returns
     -------
     w_right, w_left : wheel angular speeds [rad/s].
     """
-    w_right = (v + half_track * omega) / wheel_radius
-    w_left = (v - half_track * omega) / wheel_radius
-    return w_right, w_left
+    return (v + half_track * omega) * (1.0 / wheel_radius), (v - half_track * omega) * (1.0 / wheel_radius)
 
 
+@law
 def pose_error(x, y, theta, x_ref, y_ref, theta_ref):
-    """Tracking error expressed in the robot frame (MODEL.md 2; Kanayama et al. 1990).
+    """Tracking error expressed in the robot frame (docs/model.md §2; Kanayama et al. 1990).
 
     Returns
     -------
     e_x, e_y, e_theta : longitudinal [m], lateral [m] and heading [rad] error, e_theta wrapped.
     """
     dx, dy = x_ref - x, y_ref - y
-    c, s = np.cos(theta), np.sin(theta)
-    return c * dx + s * dy, -s * dx + c * dy, wrap_angle(theta_ref - theta)
+    c, s = math.cos(theta), math.sin(theta)
+    return c * dx + s * dy, c * dy - s * dx, wrap_angle(theta_ref - theta)
+
+
+@law
+def deviation(x, y, x_ref, y_ref):
+    """Distance from the reference position [m] (Table 4's 'Deviation', docs/model.md §7)."""
+    return math.hypot(x_ref - x, y_ref - y)
 
 
 def circle_radius(w_right: float, w_left: float, half_track: float) -> float:
-    """Radius of the circle driven by constant wheel speeds, ``L (wR + wL) / (wR - wL)``."""
+    """Radius of the circle driven by constant wheel speeds, ``L (wR + wL) / (wR - wL)`` [m]."""
     return half_track * (w_right + w_left) / (w_right - w_left)

@@ -11,7 +11,7 @@ from ddmr_cli.model.terrain import Terrain, TerrainZone
 
 
 def paper_terrain() -> Terrain:
-    """Paper Fig. 3 (MODEL.md 5): flat [0, 5) m, very rough [5, 10) m, slightly rough from 10 m."""
+    """Paper Fig. 3 (docs/model.md §5): flat [0, 5) m, very rough [5, 10) m, slightly rough from 10 m."""
     return Terrain(zones=(TerrainZone("flat", 0.0, 0.1, 0.02), TerrainZone("very_rough", 5.0, 100.0, 0.10),
                           TerrainZone("slightly_rough", 10.0, 5.0, 0.05)), correlation_time=0.02)
 

@@ -1,16 +1,24 @@
-"""The paper's robot: physical constants and the wheel-space dynamics they imply (MODEL.md section 1).
+"""The paper's robot: physical constants and the wheel-space plant they imply (docs/model.md §1 and §5).
 
 Wheel vectors are ordered (right, left). The wheel-space dynamics are the paper's (6),
 ``J w' + B w + tau_d = K_u u`` with ``u`` the motor voltage, written in the form (8)
 ``w' = f(w) + g u + d`` with ``f(w) = -J^-1 B w``, ``g = J^-1 K_u`` and ``d = -J^-1 tau_d``.
+The laws at the end of this module (:func:`acceleration`, :func:`disturbance`, :func:`nominal_acceleration`,
+:func:`voltage_for`) are the plant's equations as the engine and the controllers run them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
+
+from ddmr_cli.checks import non_negative, positive
+from ddmr_cli.compiled import law
+from ddmr_cli.errors import ConfigError
 
 GRAVITY = 9.81  # m/s^2
 
@@ -26,10 +34,6 @@ class WheelMatrix:
     Its inverse and eigenvalues have closed forms, so the model's numbers never depend on which LAPACK kernel
     a CPU gets: ``[[p, q], [q, p]]^-1 = [[p, -q], [-q, p]] / (p^2 - q^2)``, eigenvalues ``p + q`` (common
     mode, eigenvector ``[1, 1]``) and ``p - q`` (differential mode, ``[1, -1]``).
-
-    Calling it on a batch of wheel vectors ``v`` (shape ``(n_runs, 2)``) returns ``(M v^T)^T`` computed
-    elementwise, ``p v + q v_swapped``: BLAS matrix products round differently for different batch sizes,
-    and a run must give bit-identical numbers alone or inside any batch.
     """
 
     p: float
@@ -71,9 +75,6 @@ class WheelMatrix:
     def to_array(self) -> np.ndarray:
         return np.array([[self.p, self.q], [self.q, self.p]])
 
-    def __call__(self, v: np.ndarray) -> np.ndarray:
-        return self.p * v + self.q * v[:, ::-1]
-
 
 @dataclass(frozen=True)
 class Robot:
@@ -92,11 +93,11 @@ class Robot:
     wheel_inertia : float
         Wheel moment of inertia I_w [kg m^2] (Table 2: 0.0075).
     torque_constant, back_emf_constant : float
-        Motor constants k_t [N m/A] and k_e [V s/rad], referred to the wheel (MODEL.md: 0.3, 0.3).
+        Motor constants k_t [N m/A] and k_e [V s/rad], referred to the wheel (docs/model.md: 0.3, 0.3).
     armature_resistance : float
-        R_a [ohm] (MODEL.md: 0.7).
+        R_a [ohm] (docs/model.md: 0.7).
     viscous_friction : float
-        b_v per wheel [N m s/rad] (MODEL.md: 0.01).
+        b_v per wheel [N m s/rad] (docs/model.md: 0.01).
     max_voltage : float
         Supply voltage U_max [V]; the applied voltage is saturated to +-U_max (paper 4.1: 24).
     """
@@ -112,6 +113,24 @@ class Robot:
     viscous_friction: float = 0.01
     max_voltage: float = 24.0
 
+    def __post_init__(self) -> None:
+        for name in ("mass", "wheel_radius", "track_width", "yaw_inertia", "wheel_inertia", "torque_constant",
+                     "back_emf_constant", "armature_resistance", "max_voltage"):
+            positive(f"robot.{name}", getattr(self, name))
+        non_negative("robot.viscous_friction", self.viscous_friction)
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        try:
+            derived = (*self.inverse_inertia.eigenvalues, self.damping, self.voltage_gain)
+        except (ValueError, ArithmeticError) as exc:
+            raise ConfigError("robot", values, f"gives no usable inertia matrix J ({' '.join(str(exc).split())})") from None
+        if not all(math.isfinite(v) for v in derived):
+            raise ConfigError("robot", values, "gives a non-finite J^-1, damping B or voltage gain K_u (too extreme)")
+
+    def step_rate(self, damping_scale_max: float = 1.0) -> float:
+        """The plant's fastest pole [1/s], the largest eigenvalue of ``J^-1 B`` times the largest damping ratio
+        ``B_true / B_nom`` (docs/model.md §4): the step must resolve it."""
+        return max(self.drift.eigenvalues) * damping_scale_max
+
     @property
     def half_track(self) -> float:
         """L, half the distance between the wheels [m]."""
@@ -119,7 +138,7 @@ class Robot:
 
     @cached_property
     def inertia(self) -> WheelMatrix:
-        """J, from the kinetic energy of body plus wheels (MODEL.md 1, the paper's (6))."""
+        """J, from the kinetic energy of body plus wheels (docs/model.md §1, the paper's (6))."""
         r2, L = self.wheel_radius**2, self.half_track
         translational = self.mass * r2 / 4.0
         rotational = self.yaw_inertia * r2 / (4.0 * L**2)
@@ -132,12 +151,12 @@ class Robot:
 
     @property
     def damping(self) -> float:
-        """B = b_v + k_t k_e / R_a [N m s/rad], the same on both wheels (MODEL.md 1)."""
+        """B = b_v + k_t k_e / R_a [N m s/rad], the same on both wheels (docs/model.md §1)."""
         return self.viscous_friction + self.torque_constant * self.back_emf_constant / self.armature_resistance
 
     @property
     def voltage_gain(self) -> float:
-        """K_u = k_t / R_a [N m/V] (MODEL.md 1)."""
+        """K_u = k_t / R_a [N m/V] (docs/model.md §1)."""
         return self.torque_constant / self.armature_resistance
 
     @cached_property
@@ -166,44 +185,107 @@ class Robot:
         return self.input_gain.to_array()
 
     def rolling_resistance_torque(self, mu: float | np.ndarray) -> float | np.ndarray:
-        """Rolling-resistance torque per wheel, ``mu m g R / 2`` [N m] (MODEL.md 5)."""
+        """Rolling-resistance torque per wheel, ``mu m g R / 2`` [N m] (docs/model.md §5)."""
         return mu * self.mass * GRAVITY * self.wheel_radius / 2.0
 
-    def current(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """Armature current ``i = (u - k_e w) / R_a`` [A] (MODEL.md 7)."""
-        return (u - self.back_emf_constant * w) / self.armature_resistance
+    def plant(self) -> "Plant":
+        """The constants of the true plant as the engine's laws take them."""
+        jinv = self.inverse_inertia
+        return Plant(jinv.p, jinv.q, self.damping, self.voltage_gain, self.max_voltage, self.wheel_radius,
+                     self.half_track, self.back_emf_constant, self.armature_resistance)
 
 
-@dataclass(frozen=True)
-class NominalModel:
-    """The model a controller believes in: ``w' = -A w + g u + d`` with nominal J, B, K_u (MODEL.md 1).
+class Plant(NamedTuple):
+    """Constants of the true plant (docs/model.md §1): ``J^-1 = [[jinv_p, jinv_q], [jinv_q, jinv_p]]`` [1/(kg m^2)],
+    ``B`` [N m s/rad], ``K_u`` [N m/V], ``U_max`` [V], ``R``, ``L`` [m], ``k_e`` [V s/rad], ``R_a`` [ohm]."""
 
-    Controllers use this; the true plant may differ (scenario 2's time-varying damping).
-    """
-
-    inertia: WheelMatrix
+    jinv_p: float
+    jinv_q: float
     damping: float
     voltage_gain: float
+    max_voltage: float
+    wheel_radius: float
+    half_track: float
+    back_emf_constant: float
+    armature_resistance: float
+
+
+class NominalModel(NamedTuple):
+    """The model a controller believes in: ``w' = -A w + g u + d`` with nominal J, B, K_u (docs/model.md §1).
+
+    Controllers use this; the true plant may differ (scenario 2's time-varying damping). Fields:
+    ``J^-1`` (``jinv_p``, ``jinv_q``), ``J / K_u`` (``j_over_ku_p``, ``j_over_ku_q``), ``B``, ``K_u`` and ``B / K_u``.
+    """
+
+    jinv_p: float
+    jinv_q: float
+    j_over_ku_p: float
+    j_over_ku_q: float
+    damping: float
+    voltage_gain: float
+    damping_over_gain: float
 
     @classmethod
     def from_robot(cls, robot: Robot) -> "NominalModel":
-        return cls(robot.inertia, robot.damping, robot.voltage_gain)
+        J, ku, B = robot.inertia, robot.voltage_gain, robot.damping
+        jinv = J.inverse()
+        return cls(jinv.p, jinv.q, J.p / ku, J.q / ku, B, ku, B / ku)
 
-    @cached_property
-    def inertia_over_gain(self) -> WheelMatrix:
-        """J / K_u, so that ``g^-1 a = (J / K_u) a``."""
-        J = self.inertia
-        return WheelMatrix(J.p / self.voltage_gain, J.q / self.voltage_gain)
 
-    @cached_property
-    def inverse_inertia(self) -> WheelMatrix:
-        """J^-1, in closed form."""
-        return self.inertia.inverse()
+@law
+def sign(x):
+    """sign(x) in {-1, 0, 1} (an int; 0 for 0 and NaN)."""
+    return 1 if x > 0.0 else (-1 if x < 0.0 else 0)
 
-    def f_plus_g_u(self, w: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """The nominal acceleration ``f(w) + g u = J^-1 (K_u u - B w)`` (the paper's (8) without d)."""
-        return self.inverse_inertia(self.voltage_gain * u - self.damping * w)
 
-    def voltage_for(self, a: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """``u = g^-1 (a - f(w)) = (J a + B w) / K_u``: the voltage that gives acceleration ``a`` at speed ``w``."""
-        return self.inertia_over_gain(a) + (self.damping / self.voltage_gain) * w
+@law
+def acceleration(plant, w_R, w_L, u_R, u_L, d_R, d_L):
+    """The paper's (8): ``w' = J^-1 (K_u u - B w) + d`` [rad/s^2], ``B`` the nominal damping."""
+    m_R = plant.voltage_gain * u_R - plant.damping * w_R
+    m_L = plant.voltage_gain * u_L - plant.damping * w_L
+    return (plant.jinv_p * m_R + plant.jinv_q * m_L + d_R,
+            plant.jinv_q * m_R + plant.jinv_p * m_L + d_L)
+
+
+@law
+def disturbance(plant, w_R, w_L, damping_scale, uncertain, roughness_R, roughness_L, roll_torque):
+    """The lumped disturbance ``d = w' - f_nom(w) - g_nom u`` of the true plant (docs/model.md §5) [rad/s^2]:
+    ``d = -J^-1 (B_nom (b - 1) w + tau_roll sign(w)) + d_rough``, with rolling resistance opposing each wheel's
+    rotation, ``b = B_true / B_nom`` the damping uncertainty (scenario 2, when ``uncertain``) and ``d_rough`` the
+    terrain roughness part."""
+    t_R = sign(w_R) * roll_torque
+    t_L = sign(w_L) * roll_torque
+    if uncertain:
+        t_R += (plant.damping * (damping_scale - 1.0)) * w_R
+        t_L += (plant.damping * (damping_scale - 1.0)) * w_L
+    return (roughness_R - (plant.jinv_p * t_R + plant.jinv_q * t_L),
+            roughness_L - (plant.jinv_q * t_R + plant.jinv_p * t_L))
+
+
+@law
+def wheel_acceleration(plant, w_R, w_L, u_R, u_L, damping_scale, uncertain, roughness_R, roughness_L, roll_torque):
+    """The true plant's ``(w'_R, w'_L, d_R, d_L)``: :func:`disturbance` at ``w``, then :func:`acceleration` (8)."""
+    d_R, d_L = disturbance(plant, w_R, w_L, damping_scale, uncertain, roughness_R, roughness_L, roll_torque)
+    a_R, a_L = acceleration(plant, w_R, w_L, u_R, u_L, d_R, d_L)
+    return a_R, a_L, d_R, d_L
+
+
+@law
+def saturate(u_command, max_voltage):
+    """The motor driver's limit (docs/model.md §4): ``u = clip(u_c, -U_max, U_max)`` [V], and whether it clipped."""
+    return min(max(u_command, -max_voltage), max_voltage), abs(u_command) > max_voltage
+
+
+@law
+def nominal_acceleration(nominal, w_R, w_L, u_R, u_L):
+    """``f(w) + g u = J^-1 (K_u u - B w)``: the paper's (8) without d, in the nominal model [rad/s^2]."""
+    m_R = nominal.voltage_gain * u_R - nominal.damping * w_R
+    m_L = nominal.voltage_gain * u_L - nominal.damping * w_L
+    return nominal.jinv_p * m_R + nominal.jinv_q * m_L, nominal.jinv_q * m_R + nominal.jinv_p * m_L
+
+
+@law
+def voltage_for(nominal, a_R, a_L, w_R, w_L):
+    """``u = g^-1 (a - f(w)) = (J a + B w) / K_u`` [V]: the voltage that gives acceleration ``a`` at speed ``w``."""
+    return (nominal.j_over_ku_p * a_R + nominal.j_over_ku_q * a_L + nominal.damping_over_gain * w_R,
+            nominal.j_over_ku_q * a_R + nominal.j_over_ku_p * a_L + nominal.damping_over_gain * w_L)

@@ -1,4 +1,4 @@
-"""Scenarios: which disturbances act when (MODEL.md section 5; paper Fig. 10).
+"""Scenarios: which disturbances act when (docs/model.md §5; paper Fig. 10).
 
 A scenario is a list of phases by time. In each phase the terrain roughness and the parametric uncertainty
 (the true damping ``B(t) = B_nom (1 + delta(t))``) are on or off; rolling resistance always acts.
@@ -7,9 +7,13 @@ A scenario is a list of phases by time. In each phase the terrain roughness and 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
+
+from ddmr_cli.checks import finite, non_negative, positive, starts_increasing_from_zero
+from ddmr_cli.compiled import law
+from ddmr_cli.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -22,18 +26,17 @@ class Phase:
     uncertainty: bool = False
 
 
-@dataclass(frozen=True)
-class DampingUncertainty:
-    """The true damping's relative deviation delta(t): an OU process, clipped (MODEL.md 5, scenario 2).
+class DampingUncertainty(NamedTuple):
+    """The true damping's relative deviation delta(t): an OU process, clipped (docs/model.md §5, scenario 2).
 
     Parameters
     ----------
     correlation_time : float
-        [s] (MODEL.md: 0.5).
+        [s] (docs/model.md: 0.5).
     std : float
-        Stationary standard deviation (MODEL.md: 0.4).
+        Stationary standard deviation (docs/model.md: 0.4).
     low, high : float
-        Clip bounds of delta (MODEL.md: -0.5, 1.0), so ``B_true`` stays in ``[0.5, 2] B_nom``.
+        Clip bounds of delta (docs/model.md: -0.5, 1.0), so ``B_true`` stays in ``[0.5, 2] B_nom``.
     """
 
     correlation_time: float = 0.5
@@ -56,6 +59,15 @@ class Scenario:
 
     def __post_init__(self):
         object.__setattr__(self, "phases", tuple(self.phases))
+        starts_increasing_from_zero("scenario.phases", [(p.name, p.start) for p in self.phases], "phase")
+        u = self.uncertainty
+        positive("scenario.uncertainty.correlation_time", u.correlation_time)
+        non_negative("scenario.uncertainty.std", u.std)
+        low, high = finite("scenario.uncertainty.low", u.low), finite("scenario.uncertainty.high", u.high)
+        if low <= -1.0:
+            raise ConfigError("scenario.uncertainty.low", u.low, "must be > -1 (the true damping must stay positive)")
+        if high <= low:
+            raise ConfigError("scenario.uncertainty.high", u.high, f"must be > scenario.uncertainty.low ({low:g})")
 
     @property
     def names(self) -> list[str]:
@@ -65,3 +77,10 @@ class Scenario:
         """Index of the phase each time lies in."""
         starts = np.array([p.start for p in self.phases[1:]], dtype=float)
         return np.searchsorted(starts, t, side="right")
+
+
+@law
+def damping_scale(uncertainty, n):
+    """The true damping's ratio ``b = B_true / B_nom = 1 + clip(std n(t), low, high)`` for the unit OU process
+    ``n(t)`` (docs/model.md §5, scenario 2)."""
+    return 1.0 + min(max(uncertainty.std * n, uncertainty.low), uncertainty.high)

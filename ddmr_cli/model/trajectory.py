@@ -1,4 +1,4 @@
-"""Reference trajectories: pose, v_r and omega_r as functions of time (MODEL.md section 3).
+"""Reference trajectories: pose, v_r and omega_r as functions of time (docs/model.md §3).
 
 A trajectory is any object with ``reference(t) -> (x_r, y_r, theta_r, v_r, omega_r)`` for a scalar time ``t``.
 Adding one is a new class here plus a YAML file in ``conf/trajectory``.
@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from typing import Protocol
+
+from ddmr_cli.checks import finite, positive
 
 
 class Trajectory(Protocol):
@@ -21,12 +23,16 @@ class Trajectory(Protocol):
 
 @dataclass(frozen=True)
 class StraightLine:
-    """The paper's reference: ``x_r = x0 + v t cos(heading)``, ``y_r = y0 + v t sin(heading)`` (MODEL.md 3)."""
+    """The paper's reference: ``x_r = x0 + v t cos(heading)``, ``y_r = y0 + v t sin(heading)`` (docs/model.md §3)."""
 
     speed: float = 1.0
     heading: float = 0.0
     x0: float = 0.0
     y0: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("speed", "heading", "x0", "y0"):
+            finite(f"trajectory.{name}", getattr(self, name))
 
     def reference(self, t: float) -> tuple[float, float, float, float, float]:
         d = self.speed * t
@@ -39,6 +45,10 @@ class Circle:
 
     speed: float = 1.0
     radius: float = 2.0
+
+    def __post_init__(self) -> None:
+        finite("trajectory.speed", self.speed)
+        positive("trajectory.radius", self.radius)
 
     def reference(self, t: float) -> tuple[float, float, float, float, float]:
         omega = self.speed / self.radius
@@ -55,6 +65,10 @@ class FigureEight:
 
     amplitude: float = 3.0
     period: float = 30.0
+
+    def __post_init__(self) -> None:
+        positive("trajectory.amplitude", self.amplitude)
+        positive("trajectory.period", self.period)
 
     def reference(self, t: float) -> tuple[float, float, float, float, float]:
         a, w = self.amplitude, 2.0 * math.pi / self.period

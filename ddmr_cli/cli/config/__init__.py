@@ -38,8 +38,7 @@ def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     """Validate a composed config, build its simulation and run its seeds. Returns a SimulationResult."""
     from ddmr_cli.engine.simulation import simulate
 
-    validate_config(cfg)
-    sim = build_simulation(cfg)
+    sim = validate_config(cfg)
     return simulate(sim, seeds_of(cfg), keep_series=list(cfg.run.keep_series), progress=progress)
 
 

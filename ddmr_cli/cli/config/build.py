@@ -6,6 +6,7 @@ import hashlib
 import json
 from typing import Any
 
+from hydra.errors import InstantiationException
 from omegaconf import DictConfig, OmegaConf
 
 from ddmr_cli.errors import ConfigError
@@ -22,20 +23,20 @@ ALLOWED_TARGET_PREFIX = "ddmr_cli."
 NON_RESULT_KEYS = ("run.plots", "run.progress", "run.threads", "experiment_name", "cluster")
 
 
-def _check_targets(node: Any, path: str) -> None:
+def check_targets(node: Any, path: str) -> None:
     if isinstance(node, DictConfig):
         target = node.get("_target_") if "_target_" in node else None
         if target is not None and not str(target).startswith(ALLOWED_TARGET_PREFIX):
             raise ConfigError(f"{path}._target_", target, f"only {ALLOWED_TARGET_PREFIX}* classes may be instantiated")
         for key in node:
-            _check_targets(node[key], f"{path}.{key}")
+            check_targets(node[key], f"{path}.{key}")
 
 
 def instantiate_checked(node: DictConfig, path: str):
     """``hydra.utils.instantiate`` restricted to the project's own classes."""
     from hydra.utils import instantiate
 
-    _check_targets(node, path)
+    check_targets(node, path)
     return instantiate(node, _convert_="all")
 
 
@@ -44,13 +45,13 @@ def build_robot(cfg: DictConfig) -> Robot:
 
 
 def build_terrain(cfg: DictConfig) -> Terrain:
-    zones = sorted(((name, z) for name, z in cfg.zones.items()), key=lambda item: item[1].start)
+    zones = list(cfg.zones.items())  # in config order: Terrain refuses starts that do not increase
     return Terrain(zones=tuple(TerrainZone(str(name), float(z.start), float(z.roughness), float(z.mu))
                                for name, z in zones), correlation_time=float(cfg.correlation_time))
 
 
 def build_scenario(cfg: DictConfig) -> Scenario:
-    phases = sorted(((name, p) for name, p in cfg.phases.items()), key=lambda item: item[1].start)
+    phases = list(cfg.phases.items())  # in config order: Scenario refuses starts that do not increase
     u = cfg.uncertainty
     return Scenario(
         name=str(cfg.name),
@@ -66,7 +67,14 @@ def controller_name(cfg: DictConfig) -> str:
 
 def build_simulation(cfg: DictConfig) -> Simulation:
     """The :class:`~ddmr_cli.engine.simulation.Simulation` a composed (and validated) config describes."""
-    controller = instantiate_checked(cfg.controller, "controller")
+    try:
+        controller = instantiate_checked(cfg.controller, "controller")
+        trajectory = instantiate_checked(cfg.trajectory, "trajectory")
+    except InstantiationException as exc:  # a constructor's ConfigError, wrapped by Hydra
+        cause = exc.__cause__ or exc.__context__
+        if isinstance(cause, ConfigError):
+            raise cause from None
+        raise
     sim_cfg = cfg.simulation
     wheel = sim_cfg.initial_wheel_speeds
     return Simulation(
@@ -74,7 +82,7 @@ def build_simulation(cfg: DictConfig) -> Simulation:
         robot=build_robot(cfg.robot),
         terrain=build_terrain(cfg.terrain),
         scenario=build_scenario(cfg.scenario),
-        trajectory=instantiate_checked(cfg.trajectory, "trajectory"),
+        trajectory=trajectory,
         outer_loop=Kanayama(**OmegaConf.to_container(cfg.outer_loop, resolve=True)),
         dt=float(sim_cfg.dt),
         duration=float(sim_cfg.duration),
@@ -82,7 +90,6 @@ def build_simulation(cfg: DictConfig) -> Simulation:
         initial_pose=tuple(float(v) for v in sim_cfg.initial_pose),
         initial_wheel_speeds=wheel if isinstance(wheel, str) else tuple(float(v) for v in wheel),
         divergence_bound=float(sim_cfg.divergence_bound),
-        engine=str(sim_cfg.engine),
     )
 
 

@@ -150,7 +150,6 @@ class SimulationConfig:
     initial_pose: List[float] = field(default_factory=lambda: [0.0, 0.05, 0.05])
     initial_wheel_speeds: Any = "reference"
     divergence_bound: float = 1.0
-    engine: str = "auto"
 
 
 @dataclass

@@ -1,0 +1,49 @@
+"""One definition of every law, run compiled when numba is installed and as plain Python when it is not.
+
+A law is a plain Python function on floats (and named tuples, structured records and arrays), decorated with
+:func:`law`. With numba it is compiled on first use, and compiled code that calls it inlines it; without numba,
+or with ``NUMBA_DISABLE_JIT=1``, the same function runs as Python. The step loop
+(:mod:`ddmr_cli.engine.stepper`) is a law too, so the definition a test exercises is the one that runs.
+
+Laws are not cached on disk one by one: numba's cache of a function does not notice an edit to a function it
+calls in another file, so a cached caller could keep running an old law. Only the copies of the step loop are
+cached (:func:`cached_law`), under a name that holds a hash of every law's source
+(:mod:`ddmr_cli.engine.kernels`).
+"""
+
+from __future__ import annotations
+
+import os
+
+try:
+    import numba
+    from numba import njit
+except ImportError:  # pragma: no cover - exercised by tests/test_fallback.py in a subprocess
+    numba, njit = None, None
+
+#: True when numba is installed (laws run compiled unless NUMBA_DISABLE_JIT=1)
+AVAILABLE = numba is not None
+
+
+def law(fn):
+    """Compile ``fn`` (GIL released) when numba is there; else return it unchanged."""
+    return njit(nogil=True)(fn) if AVAILABLE else fn
+
+
+def cached_law(fn):
+    """As :func:`law`, cached on disk: for the generated copies of the step loop only (see the module docstring)."""
+    return njit(cache=True, nogil=True)(fn) if AVAILABLE else fn
+
+
+def jit_enabled() -> bool:
+    """True when laws run compiled: numba is installed and ``NUMBA_DISABLE_JIT`` is not set."""
+    return AVAILABLE and not numba.config.DISABLE_JIT
+
+
+def thread_count(n: int) -> int:
+    """Threads to use for ``n`` (0: every core this process may use)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, int(n) if n else cores)
+
+
+__all__ = ["AVAILABLE", "cached_law", "jit_enabled", "law", "thread_count"]

@@ -1,0 +1,64 @@
+"""Nonlinear disturbance observer, the paper's (21)-(22) with ``Gamma = L I`` (docs/model.md §6).
+
+``d_hat = z + Gamma w``, ``z' = -Gamma (d_hat + f(w) + g u)``, fed with the applied (saturated) ``u``, and
+``z(0) = -Gamma w(0)`` so that ``d_hat(0) = 0``. For a constant disturbance the estimation error obeys
+``d_tilde' = -Gamma d_tilde`` (the paper's (20)): it converges at rate ``L``. Discretised by explicit Euler at
+the control step.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from ddmr_cli.compiled import law
+from ddmr_cli.checks import compact, per_wheel, positive
+from ddmr_cli.control.base import StepRate
+from ddmr_cli.model.robot import nominal_acceleration
+
+
+class NDOParameters(NamedTuple):
+    gain: tuple  # L per wheel (right, left) [1/s]
+
+
+@law
+def start(p, z, w0_R, w0_L):
+    """``z(0) = -Gamma w(0)``, so that ``d_hat(0) = 0``."""
+    z[0] = -p.gain[0] * w0_R
+    z[1] = -p.gain[1] * w0_L
+
+
+@law
+def estimate(p, z, w_R, w_L):
+    """(21): ``d_hat = z + Gamma w`` [rad/s^2]."""
+    return z[0] + p.gain[0] * w_R, z[1] + p.gain[1] * w_L
+
+
+@law
+def update(p, nominal, dt, z, d_hat_R, d_hat_L, w_R, w_L, u_R, u_L):
+    """(22), one Euler step: ``z <- z - dt Gamma (d_hat + f(w) + g u)``."""
+    a_R, a_L = nominal_acceleration(nominal, w_R, w_L, u_R, u_L)
+    z[0] -= (dt * p.gain[0]) * (d_hat_R + a_R)
+    z[1] -= (dt * p.gain[1]) * (d_hat_L + a_L)
+
+
+class NonlinearDisturbanceObserver:
+    """The NDO of the paper's section 3.2 (docs/model.md §6).
+
+    Parameters
+    ----------
+    gain : float or (float, float)
+        Observer gain L per wheel [1/s] (Table 3: 50).
+    """
+
+    def __init__(self, gain=50.0) -> None:
+        self.gain = per_wheel("controller.ndo.gain", gain, positive)
+
+    def law_parameters(self) -> NDOParameters:
+        return NDOParameters(self.gain)
+
+    def step_rates(self) -> list[StepRate]:
+        """The error decays at rate L: explicit Euler needs ``dt L`` below its limit."""
+        return [StepRate("controller.ndo.gain", max(self.gain))]
+
+    def parameters(self) -> dict[str, object]:
+        return {"L": compact(self.gain)}

@@ -1,0 +1,88 @@
+"""RBF neural-network observer, the paper's (24)-(27) with the update law (25) (docs/model.md §6).
+
+``d_hat_NN = W^T Phi(x)`` with ``x = w``, ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))``, centres
+``c_j = (c, c)`` evenly spaced on ``[center_min, center_max]``, ``W`` (n x 2 per run, stored as one row of n
+weights per wheel) starting at 0 and adapting by ``W' = -gamma Phi(x) s^T`` (25): the sign that makes (28)'s
+``V' <= 0`` for ``s = w_d - w`` with ``d_hat`` subtracted in (17). Discretised by explicit Euler.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ddmr_cli.compiled import law
+from ddmr_cli.checks import compact, finite, integer, per_wheel, positive
+from ddmr_cli.errors import ConfigError
+
+
+class RBFParameters(NamedTuple):
+    centers: np.ndarray  # c_j [rad/s], shape (n,)
+    width: float  # sigma [rad/s]
+    learning_rate: tuple  # gamma per wheel (right, left)
+
+
+@law
+def basis(p, phi, w_R, w_L):
+    """(27): ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))`` for ``x = (w_R, w_L)``, ``c_j = (c_j, c_j)``, into ``phi``."""
+    scale = -0.5 / (p.width * p.width)
+    for j in range(p.centers.shape[0]):
+        phi[j] = math.exp(((w_R - p.centers[j]) ** 2 + (w_L - p.centers[j]) ** 2) * scale)
+
+
+@law
+def estimate(p, weights, phi, w_R, w_L):
+    """(24): ``d_hat_NN = W^T Phi(x)`` [rad/s^2]; leaves ``Phi(x)`` in ``phi`` for :func:`update`."""
+    basis(p, phi, w_R, w_L)
+    d_R = 0.0
+    d_L = 0.0
+    for j in range(phi.shape[0]):
+        d_R += weights[0, j] * phi[j]
+        d_L += weights[1, j] * phi[j]
+    return d_R, d_L
+
+
+@law
+def update(p, dt, weights, phi, s_R, s_L):
+    """(25), one Euler step: ``W <- W - dt gamma Phi(x) s^T``."""
+    step_R, step_L = (dt * p.learning_rate[0]) * s_R, (dt * p.learning_rate[1]) * s_L
+    for j in range(phi.shape[0]):
+        weights[0, j] -= step_R * phi[j]
+        weights[1, j] -= step_L * phi[j]
+
+
+class RBFNetworkObserver:
+    """The RBF network observer of the paper's section 3.3 (docs/model.md §6).
+
+    Parameters
+    ----------
+    n_neurons : int
+        Hidden neurons n (Table 3: 10).
+    width : float
+        RBF width sigma [rad/s] (eq. 25 / Table 3 reading: 2; text reading: 50).
+    learning_rate : float or (float, float)
+        gamma per wheel (eq. 25 / Table 3 reading: 50; text reading: 2).
+    center_min, center_max : float
+        Range of the centres [rad/s] (docs/model.md §6: -40, 40).
+    """
+
+    def __init__(self, n_neurons: int = 10, width: float = 2.0, learning_rate=50.0,
+                 center_min: float = -40.0, center_max: float = 40.0) -> None:
+        self.n_neurons = integer("controller.nn.n_neurons", n_neurons, 1)
+        self.width = positive("controller.nn.width", width)
+        self.learning_rate = per_wheel("controller.nn.learning_rate", learning_rate, positive)
+        self.center_min = finite("controller.nn.center_min", center_min)
+        self.center_max = finite("controller.nn.center_max", center_max)
+        if self.center_max <= self.center_min and self.n_neurons > 1:
+            raise ConfigError("controller.nn.center_max", center_max,
+                              f"must be > controller.nn.center_min ({self.center_min:g})")
+        self.centers = np.linspace(self.center_min, self.center_max, self.n_neurons)
+
+    def law_parameters(self) -> RBFParameters:
+        return RBFParameters(self.centers.copy(), self.width, self.learning_rate)
+
+    def parameters(self) -> dict[str, object]:
+        return {"n": self.n_neurons, "sigma": self.width, "gamma": compact(self.learning_rate),
+                "centres": f"[{self.center_min:g}, {self.center_max:g}]"}

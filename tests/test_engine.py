@@ -1,0 +1,120 @@
+"""The one step loop: compiled per controller and cached on disk, the same numbers as plain Python, any threads.
+
+Each law is defined once (docs/model.md); the step loop that runs them is compiled with numba when it is
+installed and runs as plain Python when it is not (or with NUMBA_DISABLE_JIT=1). These tests hold the two to
+the same numbers, and check that the compiled loop is loaded from the disk cache by a later process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver, Simulation,
+                      paper_scenario, paper_terrain, simulate)
+from ddmr_cli.compiled import AVAILABLE
+
+#: the controllers of the presets plus every switching function and surface
+CONTROLLERS = {
+    "open_loop": "OpenLoop([11.0, 10.5])",
+    "pid": "PID()",
+    "pid_per_wheel": "PID(kp=[5.0, 4.0], ki=[0.1, 0.3], kd=[0.01, 0.0], anti_windup=False)",
+    "smc_sign": "SMC(switching='sign', switching_gain=4.0)",
+    "smc_tanh_integral": "SMC(switching='tanh', surface='integral', lam=[20.0, 30.0])",
+    "smc_ndo_nno": "SMC(ndo=NonlinearDisturbanceObserver([50.0, 40.0]), nn=RBFNetworkObserver(10, 2.0, 50.0))",
+}
+
+_SCRIPT = textwrap.dedent("""
+    import json, sys
+    {block}
+    from ddmr_cli import *
+    from ddmr_cli.compiled import jit_enabled
+    out = {{}}
+    for name, make in {controllers}.items():
+        for scenario, integrator in ((1, "euler"), (2, "rk4")):
+            sim = Simulation(controller=eval(make), terrain=paper_terrain(), scenario=paper_scenario(scenario),
+                             duration={duration}, integrator=integrator)
+            r = simulate(sim, [3, 4], keep_series=[4])
+            out[f"{{name}}/{{scenario}}/{{integrator}}"] = {{
+                "metrics": {{m: v.tolist() for m, v in r.metrics.items()}},
+                "u": r.series[4]["u_right"][::50].tolist(), "engine": r.engine}}
+    print(json.dumps({{"jit": jit_enabled(), "runs": out}}))
+""")
+
+
+def _run(env_extra: dict, block: str = "", duration: float = 0.3) -> dict:
+    script = _SCRIPT.format(block=block, controllers=json.dumps(CONTROLLERS), duration=duration)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=900,
+                          env={**os.environ, **env_extra})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def compiled_runs():
+    return _run({})
+
+
+def _assert_same(a: dict, b: dict, rtol: float) -> None:
+    assert a.keys() == b.keys()
+    for key in a:
+        for metric, values in a[key]["metrics"].items():
+            np.testing.assert_allclose(b[key]["metrics"][metric], values, rtol=rtol, atol=1e-300,
+                                       err_msg=f"{key} {metric}")
+        np.testing.assert_allclose(b[key]["u"], a[key]["u"], rtol=rtol, atol=1e-12, err_msg=f"{key} u")
+
+
+@pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; without it every run is the Python fallback")
+def test_plain_python_gives_the_compiled_numbers(compiled_runs):
+    python = _run({"NUMBA_DISABLE_JIT": "1"}, duration=0.3)
+    assert compiled_runs["jit"] and not python["jit"]
+    assert {r["engine"] for r in python["runs"].values()} == {"python"}
+    _assert_same(compiled_runs["runs"], python["runs"], rtol=1e-12)
+
+
+@pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; without it every run is the Python fallback")
+def test_without_numba_installed_the_same_laws_run_as_python(compiled_runs):
+    block = "import builtins; _imp = builtins.__import__\n" \
+            "def _no_numba(name, *a, **k):\n" \
+            "    if name == 'numba' or name.startswith('numba.'): raise ImportError('no numba here')\n" \
+            "    return _imp(name, *a, **k)\n" \
+            "builtins.__import__ = _no_numba"
+    python = _run({}, block=block)
+    assert not python["jit"]
+    _assert_same(compiled_runs["runs"], python["runs"], rtol=1e-12)
+
+
+def test_thread_count_does_not_change_the_numbers():
+    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0), nn=RBFNetworkObserver()),
+                     terrain=paper_terrain(), scenario=paper_scenario(2), duration=0.5)
+    one = simulate(sim, range(7), keep_series=[5], threads=1)
+    three = simulate(sim, range(7), keep_series=[5], threads=3)
+    for metric, values in one.metrics.items():
+        assert np.array_equal(values, three.metrics[metric], equal_nan=True), metric
+    for channel, values in one.series[5].items():
+        assert np.array_equal(values, three.series[5][channel], equal_nan=True), channel
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
+def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
+    script = textwrap.dedent("""
+        from ddmr_cli import PID, Simulation, simulate
+        from ddmr_cli.engine.kernels import stepper_for
+        simulate(Simulation(controller=PID(), duration=0.01), [0])
+        stats = stepper_for("ddmr_cli.control.pid").run_chunk.stats
+        print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))
+    """)
+    env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path)}
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
+            for _ in range(2)]
+    assert all(p.returncode == 0 for p in runs), runs[-1].stderr[-2000:]
+    (hits1, misses1), (hits2, misses2) = (map(int, p.stdout.split()) for p in runs)
+    assert (hits1, misses1) == (0, 1)  # compiled in the first process
+    assert (hits2, misses2) == (1, 0)  # loaded in the second
