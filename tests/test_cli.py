@@ -82,6 +82,10 @@ def test_smoke_sweep_through_joblib(smoke_sweep_dir):
     assert np.isfinite(metrics.deviation_mae).all()
     plan = json.loads((smoke_sweep_dir / "sweep_plan.json").read_text())
     assert sorted(j["dir"] for j in plan["jobs"]) == sorted(jobs.job)
+    # per-job plots for exactly one job (the smoke preset's choice), time series for every job
+    assert [p.parent.parent.name for p in smoke_sweep_dir.glob("*/plots/control.png")] == [
+        "controller=smc_ndo_nno,scenario=paper_2"]
+    assert len(list(smoke_sweep_dir.glob("*/series.npz"))) == SMOKE_JOBS
 
 
 def test_launchers_and_batch_sizes_give_bit_identical_numbers(smoke_sweep_dir, tmp_path):

@@ -15,6 +15,14 @@ CONFIG_MODULE = "ddmr_cli.conf"
 MODEL_DOC = "docs/model.md"
 
 
+def _register_resolvers() -> None:
+    """``${ddmr.eq:a,b}``: true when the two (interpolated) strings are equal; e.g. per-job plots for one job of
+    a sweep (conf/experiment/smoke.yaml). Registered on import, in every process that composes a config."""
+    OmegaConf.register_new_resolver("ddmr.eq", lambda a, b: str(a) == str(b), replace=True)
+
+
+_register_resolvers()
+
 
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config", return_hydra_config: bool = False):
     """Compose the packaged config with Hydra's compose API (no output directory is made)."""
