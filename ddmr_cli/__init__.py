@@ -12,6 +12,11 @@ Config-driven (the same configs as the CLI)::
 
     from ddmr_cli import compose_config, run_config
     result = run_config(compose_config(["controller=smc_ndo_nno", "scenario=paper_2"]))
+
+A sweep's results (``ddmr run -m ...``), one row per job and seed, swept keys as columns::
+
+    from ddmr_cli import load_sweep
+    table = load_sweep("outputs/run/2026-01-01_12-00-00")
 """
 
 from importlib import import_module
@@ -45,6 +50,8 @@ def __dir__():
 
 
 if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
     from ddmr_cli.control import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver,
                               WheelController)
     from ddmr_cli.errors import ConfigError, DDMRError
@@ -65,6 +72,17 @@ def compose_config(overrides=(), config_name: str = "config"):
     return _compose(list(overrides), config_name)
 
 
+def load_sweep(path, segments: bool = False) -> "pd.DataFrame":
+    """The tidy per-seed table of a sweep dir (``ddmr run -m ...``) or a run dir, as a pandas DataFrame.
+
+    One row per job and seed (``segments=True``: per job, seed and terrain zone / scenario phase) of every
+    complete job; every key the sweep varies (``controller.switching_gain=4,8,12``) is a typed column, and the
+    rows are sorted by those values (numbers as numbers), then by seed. See :mod:`ddmr_cli.cli.sweep`."""
+    from ddmr_cli.cli.sweep import load_table
+
+    return load_table(path, segments=segments)
+
+
 def run_config(cfg, progress=None) -> "SimulationResult":
     """Build the simulation a composed config describes and run its seeds (see :mod:`ddmr_cli.cli.config`)."""
     from ddmr_cli.cli.config import run_config as _run
@@ -76,5 +94,5 @@ __all__ = [
     "Simulation", "simulate", "SimulationResult", "Robot", "NominalModel", "Terrain", "TerrainZone", "Scenario",
     "Phase", "DampingUncertainty", "StraightLine", "Circle", "FigureEight", "Kanayama", "WheelController", "PID",
     "SMC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver", "paper_terrain", "paper_scenario",
-    "compose_config", "run_config", "ConfigError", "DDMRError",
+    "compose_config", "run_config", "load_sweep", "ConfigError", "DDMRError",
 ]

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -51,6 +53,10 @@ def test_single_run_writes_every_output(tmp_path):
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "out"
     assert "deviation_mae" in proc.stderr + proc.stdout and str(out) in proc.stderr + proc.stdout
+    # the job's log lines carry units
+    log = proc.stdout + proc.stderr
+    assert re.search(r"deviation_mae \S+ \+- \S+ m \| .* e_theta_mae \S+ \+- \S+ rad", log), log
+    assert re.search(r"chattering \S+ V/s \| d_est_mae \S+ rad/s\^2 \| mean_voltage \S+ V", log), log
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "complete" and summary["statistics"]["runs"] == 3
     assert summary["parameters"]["L"] == 50.0 and summary["parameters"]["gamma"] == 50.0
@@ -76,6 +82,10 @@ def test_smoke_sweep_through_joblib(smoke_sweep_dir):
     assert np.isfinite(metrics.deviation_mae).all()
     plan = json.loads((smoke_sweep_dir / "sweep_plan.json").read_text())
     assert sorted(j["dir"] for j in plan["jobs"]) == sorted(jobs.job)
+    # per-job plots for exactly one job (the smoke preset's choice), time series for every job
+    assert [p.parent.parent.name for p in smoke_sweep_dir.glob("*/plots/control.png")] == [
+        "controller=smc_ndo_nno,scenario=paper_2"]
+    assert len(list(smoke_sweep_dir.glob("*/series.npz"))) == SMOKE_JOBS
 
 
 def test_launchers_and_batch_sizes_give_bit_identical_numbers(smoke_sweep_dir, tmp_path):
@@ -205,3 +215,74 @@ def test_shell_completion_completes_groups_options_and_keys(tmp_path):
                                            "controller=smc_nno"}
     keys = run_ddmr(["-sc", "query=bash"], cwd=tmp_path, env={"COMP_LINE": "ddmr run controller.n", "COMP_POINT": "22"})
     assert "controller.ndo." in keys.stdout.split()
+
+
+# A sitecustomize that makes a Hydra launcher plugin look uninstalled: Hydra's plugin scan does not list it and
+# importing it fails, as when the pip extra was never installed.
+_HIDE_PLUGIN = """
+import importlib.abc, pkgutil, sys
+HIDDEN = {hidden!r}
+
+class _Hide(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name == HIDDEN or name.startswith(HIDDEN + "."):
+            raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
+        return None
+
+sys.meta_path.insert(0, _Hide())
+_walk = pkgutil.walk_packages
+
+def walk_packages(path=None, prefix="", onerror=None):
+    return (m for m in _walk(path, prefix, onerror) if not m.name.startswith(HIDDEN))
+
+pkgutil.walk_packages = walk_packages
+"""
+
+
+@pytest.mark.parametrize("launcher", ["slurm", "submitit_local"])
+def test_launcher_without_its_plugin_names_the_pip_extra(tmp_path, launcher):
+    hide = tmp_path / "hide"
+    hide.mkdir()
+    (hide / "sitecustomize.py").write_text(_HIDE_PLUGIN.format(hidden="hydra_plugins.hydra_submitit_launcher"))
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {"PYTHONPATH": os.pathsep.join([str(hide), os.environ.get("PYTHONPATH", "")])}
+    check = subprocess.run([sys.executable, "-c", "import importlib.util as u; "
+                            "print(u.find_spec('hydra_plugins.hydra_submitit_launcher'))"],
+                           env={**os.environ, **env}, capture_output=True, text=True)
+    assert check.returncode != 0 and "No module named" in check.stderr  # the plugin is hidden in that env
+    for args in (["run", "-m", "+experiment=smoke", f"launcher={launcher}"], ["run", f"launcher={launcher}"]):
+        proc = run_ddmr(args, cwd=work, env=env)
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert lines == [f"ddmr: error: launcher={launcher}: Hydra's {'submitit_slurm' if launcher == 'slurm' else launcher}"
+                         f" launcher plugin is not installed; pip install 'ddmr-cli[slurm]' (or pip install -e "
+                         f"'.[slurm]' in a checkout)"], lines
+        assert list(work.iterdir()) == []
+
+
+def test_report_true_writes_the_report_and_ddmr_report_takes_the_latest_sweep(tmp_path, smoke_sweep_dir):
+    import shutil
+
+    older = tmp_path / "outputs" / "older" / "2020-01-01_00-00-00"
+    shutil.copytree(smoke_sweep_dir, older, ignore=shutil.ignore_patterns("report", "series.npz", "plots"))
+    for name in ("sweep_plan.json", "multirun.yaml"):
+        os.utime(older / name, (1.6e9, 1.6e9))  # written long ago
+    proc = run_ddmr(["run", "-m", "+experiment=smoke", "controller=pid,smc", "scenario=paper_1", "launcher=basic",
+                     "run.progress=false", "report=true"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (sweep_dir,) = (tmp_path / "outputs" / "smoke").iterdir()  # the default dir outputs/smoke/<time>
+    assert (sweep_dir / "report" / "report.md").stat().st_size > 1000
+    assert f"ddmr: report written to {sweep_dir.resolve() / 'report'}" in proc.stdout
+    jobs = pd.read_csv(sweep_dir / "sweep_jobs.csv")
+    assert sorted(jobs.job) == ["controller=pid,scenario=paper_1", "controller=smc,scenario=paper_1"]  # report.* not in dir names
+    shutil.rmtree(sweep_dir / "report")
+    latest = run_ddmr(["report"], cwd=tmp_path)
+    assert latest.returncode == 0, latest.stderr
+    assert f"latest sweep under ./outputs: {Path('outputs') / 'smoke' / sweep_dir.name}" in latest.stderr
+    assert (sweep_dir / "report" / "report.md").is_file() and not (older / "report").exists()
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    none = run_ddmr(["report"], cwd=empty)
+    assert none.returncode == 2 and none.stderr.startswith("ddmr: error: path=(none): no sweep under ")
+    assert len(none.stderr.strip().splitlines()) == 1

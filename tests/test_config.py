@@ -68,6 +68,17 @@ def test_experiment_presets_define_their_sweeps():
     smoke = _compose(["+experiment=smoke"], return_hydra_config=True)
     assert smoke.run.n_runs == 2
     assert set(smoke.hydra.sweeper.params.controller.split(",")) == set(CONTROLLERS)
+    # per-job plots for one job of the smoke sweep only
+    plotting = [(c, s) for c in CONTROLLERS for s in SCENARIOS
+                if _compose(["+experiment=smoke", f"controller={c}", f"scenario={s}"]).run.plots]
+    assert plotting == [("smc_ndo_nno", "paper_2")]
+    assert _compose(["+experiment=smoke", "controller=pid", "run.plots=true"]).run.plots is True
+
+
+def test_report_node_defaults_and_leaves_the_numbers_alone():
+    cfg = _compose()
+    assert cfg.report.auto is False and cfg.report.margin is None
+    assert config_hash(_compose(["report.auto=true", "report.margin=0.1"])) == config_hash(cfg)
 
 
 @pytest.mark.parametrize("launcher,target_part", [("local", "joblib"), ("submitit_local", "submitit"),

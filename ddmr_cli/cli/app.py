@@ -25,8 +25,6 @@ from ddmr_cli.cli.config.build import result_config
 
 log = logging.getLogger("ddmr")
 
-HEADLINE = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae", "chattering", "d_est_mae", "mean_voltage")
-
 
 class ProgressLog:
     """Logs ``label: steps done/total (percent), elapsed`` every ``every`` seconds and at the end."""
@@ -43,16 +41,25 @@ class ProgressLog:
                      100.0 * done / total, now - self.start)
 
 
-def _job_info() -> tuple[Path, str, list[str]]:
+def _job_info() -> tuple[Path, list[str]]:
     from hydra.core.hydra_config import HydraConfig
 
     hc = HydraConfig.get()
-    return Path(hc.runtime.output_dir), str(hc.mode), list(hc.overrides.task)
+    return Path(hc.runtime.output_dir), list(hc.overrides.task)
+
+
+def _in_sweep() -> bool:
+    """True inside a job of a multirun (False for a single run and outside Hydra, e.g. the Python API)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return False
+    return "MULTIRUN" in str(HydraConfig.get().mode)
 
 
 def run_job(cfg: DictConfig) -> dict:
     """Run one job and write its outputs; returns its summary."""
-    out, mode, overrides = _job_info()
+    out, overrides = _job_info()
     digest = config_hash(cfg)
     previous = io.read_summary(out)
     if previous and previous.get("status") == "complete" and previous.get("config_hash") == digest:
@@ -70,22 +77,13 @@ def run_job(cfg: DictConfig) -> dict:
         io.write_json(out / io.SUMMARY, {**base, "status": "failed", "error": error,
                                          "traceback": traceback.format_exc(),
                                          "wall_time": time.perf_counter() - started})
-        if "MULTIRUN" not in mode:
+        if not _in_sweep():
             if isinstance(exc, (DDMRError, ValueError)):  # a bad value: one line, exit 2, never a traceback
                 print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
                 raise SystemExit(2) from None
             raise
         return {**base, "status": "failed", "error": error}
     return summary
-
-
-def _in_sweep() -> bool:
-    try:
-        from hydra.core.hydra_config import HydraConfig
-
-        return "MULTIRUN" in str(HydraConfig.get().mode)
-    except ValueError:  # not under Hydra (Python API)
-        return False
 
 
 def _names(cfg: DictConfig) -> tuple[str, str]:
@@ -139,8 +137,9 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
     io.write_json(out / io.SUMMARY, summary)
     stats = summary["statistics"]
     log.info("%s: %d runs (%d diverged) in %.2f s", label, stats["runs"], stats["diverged"], result.wall_time)
-    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} +- {stats[m + '_sd']:.2g}" for m in HEADLINE[:4]))
-    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g}" for m in HEADLINE[4:]))
+    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} +- {stats[m + '_sd']:.2g} {io.unit_of(m)}"
+                               for m in io.HEADLINE[:4]))
+    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} {io.unit_of(m)}" for m in io.HEADLINE[4:]))
     log.info("results: %s", out)
     return summary
 

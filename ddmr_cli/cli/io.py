@@ -21,6 +21,17 @@ SERIES = "series.npz"
 CONFIG = "config.yaml"
 PLOTS_DIR = "plots"
 
+#: The headline metrics of a job (units and meanings in :data:`ddmr_cli.engine.metrics.METRICS`): its log lines,
+#: the sweep's ``sweep_jobs.csv`` (``<metric>_mean``, ``<metric>_sd``) and the sweep's terminal summary.
+HEADLINE = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae", "chattering", "d_est_mae", "mean_voltage")
+
+
+def unit_of(metric: str) -> str:
+    """The unit of a run metric (MODEL.md 7), as :data:`ddmr_cli.engine.metrics.METRICS` defines it."""
+    from ddmr_cli.engine.metrics import METRICS
+
+    return METRICS[metric][0]
+
 
 def atomic_write(path: Path, write: Callable[[str], None]) -> Path:
     """Call ``write(tmp_path)`` and rename the temporary file onto ``path``."""

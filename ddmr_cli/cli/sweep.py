@@ -1,9 +1,15 @@
-"""Sweeps: the plan of jobs, and the sweep-level tables written when a multirun ends.
+"""Sweeps: the plan of jobs, the state of a sweep dir, and the sweep-level tables written when a multirun ends.
 
-The aggregation is a Hydra callback (``hydra.callbacks.sweep_table``) that runs in the launching process once
-every job has returned, whatever the launcher (joblib, submitit, ray). It writes into the sweep dir:
-``sweep_jobs.csv`` (one row per job: status, runs, diverged, headline statistics), ``sweep_metrics.csv``
-(every job and seed) and ``sweep_segments.csv`` (every job, seed, zone and phase).
+The plan (``sweep_plan.json``: every job's dir and overrides) is computed from what Hydra carries, the sweep's
+task overrides and ``hydra.sweeper.params``, by the same function the CLI uses to validate every job before
+launching; the aggregation is a Hydra callback (``hydra.callbacks.sweep_table``) that writes the plan when the
+multirun starts and the tables when it ends, in the launching process, whatever the launcher (joblib,
+submitit, ray). Nothing is handed over in memory: the CLI reads the outcome from the sweep dir afterwards.
+
+Tables written into the sweep dir: ``sweep_jobs.csv`` (one row per job: status, runs, diverged, mean and SD
+of the headline metrics), ``sweep_metrics.csv`` (every job and seed) and ``sweep_segments.csv`` (every job,
+seed, zone and phase). Every key whose value differs between the jobs (``controller.switching_gain=4,8,12``)
+is a typed column of all three, and the rows are sorted by those values (numbers as numbers).
 """
 
 from __future__ import annotations
@@ -12,12 +18,15 @@ import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Iterable
 
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
 from ddmr_cli.cli import io
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 log = logging.getLogger("ddmr")
 
@@ -25,19 +34,22 @@ PLAN = "sweep_plan.json"
 JOBS_CSV = "sweep_jobs.csv"
 SWEEP_METRICS_CSV = "sweep_metrics.csv"
 SWEEP_SEGMENTS_CSV = "sweep_segments.csv"
-
-#: The plan of the sweep being launched, set by the CLI after it validated every job.
-pending_plan: list[dict] | None = None
-#: The outcome of the last sweep aggregated in this process (read by the CLI for its exit status).
-last_sweep: "SweepState | None" = None
+#: Columns every per-seed table has; a swept key of the same name (``controller``, ``scenario``) is not repeated.
+_BASE_COLUMNS = ("job", "controller", "scenario")
 
 
-def expand_jobs(overrides: list[str], sweeper_params: dict[str, Any]) -> list[list[str]]:
-    """The job override lists Hydra's basic sweeper will launch (sweeper params first, then the command line)."""
+def _is_hydra_override(override: str) -> bool:
+    key = override.lstrip("+~").partition("=")[0]
+    return key == "hydra" or key.startswith(("hydra.", "hydra/"))
+
+
+def expand_jobs(overrides: Iterable[str], sweeper_params: dict[str, Any]) -> list[list[str]]:
+    """The job override lists Hydra's basic sweeper will launch (sweeper params first, then the command line);
+    ``hydra.*`` overrides are not part of a job's overrides (Hydra keeps them apart) and are left out."""
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    params = [f"{k}={v}" for k, v in sweeper_params.items()] + list(overrides)
+    params = [f"{k}={v}" for k, v in sweeper_params.items()] + [o for o in overrides if not _is_hydra_override(o)]
     parsed = OverridesParser.create().parse_overrides(params)
     return BasicSweeper.split_arguments(parsed, None)[0]
 
@@ -51,35 +63,62 @@ def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_
     return get_overrides_dirname(parsed, exclude_keys=list(exclude_keys), item_sep=item_sep, kv_sep=kv_sep)
 
 
+def plan_jobs(overrides: Iterable[str], hydra_cfg: DictConfig) -> list[dict]:
+    """The planned jobs of a sweep, ``[{"dir": ..., "overrides": [...]}, ...]``, from its overrides and the
+    composed ``hydra`` node (sweeper params, override_dirname settings)."""
+    od = hydra_cfg.job.config.override_dirname
+    jobs = expand_jobs(overrides, dict(hydra_cfg.sweeper.get("params") or {}))
+    return [{"dir": job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), "overrides": job} for job in jobs]
+
+
+def read_plan(sweep_dir: Path) -> list[dict] | None:
+    path = Path(sweep_dir) / PLAN
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))["jobs"]
+    except (OSError, ValueError, KeyError):
+        return None
+
+
 @dataclass
 class SweepState:
-    """What a sweep dir holds: complete, failed and missing jobs."""
+    """What a sweep dir holds: complete, failed and missing jobs (``unplanned``: job dirs of an earlier sweep
+    into the same dir that this sweep's plan does not list)."""
 
     sweep_dir: Path
     complete: list[tuple[Path, dict]] = field(default_factory=list)
     failed: list[tuple[Path, dict]] = field(default_factory=list)
     missing: list[dict] = field(default_factory=list)
+    unplanned: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
         return not self.failed and not self.missing
 
 
-def load_sweep(sweep_dir: Path) -> SweepState:
-    """Read a sweep dir (or a single run dir): the jobs with a summary, and the planned jobs without one."""
+def read_state(sweep_dir: Path, plan: list[dict] | None = None, every_dir: bool = False) -> SweepState:
+    """The state of a sweep dir (or a single run dir) on disk.
+
+    With a plan (``plan``, else the dir's ``sweep_plan.json``) the state covers exactly the planned jobs: a
+    planned job with a summary is complete or failed, one without is missing; other job dirs are listed in
+    ``unplanned``. ``every_dir=True`` (or no plan) takes every job dir with a summary, plus the planned ones
+    without."""
     sweep_dir = Path(sweep_dir)
     state = SweepState(sweep_dir)
     if io.read_summary(sweep_dir) is not None:  # a single run dir
         candidates = [sweep_dir]
-    else:
+    elif sweep_dir.is_dir():
         candidates = sorted(d for d in sweep_dir.iterdir() if d.is_dir() and not d.name.startswith("."))
-    planned: dict[str, dict] = {}
-    plan_path = sweep_dir / PLAN
-    if plan_path.is_file():
-        for job in json.loads(plan_path.read_text(encoding="utf-8"))["jobs"]:
-            planned[job["dir"]] = job
-            if not (sweep_dir / job["dir"]).is_dir():
-                state.missing.append(job)
+    else:
+        candidates = []
+    plan = read_plan(sweep_dir) if plan is None else plan
+    planned = {job["dir"]: job for job in plan or []}
+    if plan is not None and not every_dir and candidates != [sweep_dir]:
+        state.unplanned = [d.name for d in candidates if d.name not in planned and io.read_summary(d) is not None]
+        candidates = [sweep_dir / job["dir"] for job in plan]
+    else:
+        state.missing = [job for name, job in planned.items() if not (sweep_dir / name).is_dir()]
     for job_dir in candidates:
         summary = io.read_summary(job_dir)
         if summary is None:
@@ -90,41 +129,194 @@ def load_sweep(sweep_dir: Path) -> SweepState:
     return state
 
 
-def aggregate(sweep_dir: Path) -> SweepState:
-    """Write the sweep-level tables and print one line per job; returns the sweep's state."""
+def load_sweep(sweep_dir: Path) -> SweepState:
+    """Every job dir of a sweep dir (the former name of :func:`read_state` with ``every_dir=True``, which
+    :mod:`ddmr_cli.report.data` still imports). The public ``ddmr_cli.load_sweep`` is :func:`load_table`."""
+    return read_state(sweep_dir, every_dir=True)
+
+
+# --- swept keys ---------------------------------------------------------------------------------------------
+
+
+def _typed_overrides(overrides: Iterable[str]) -> dict[str, Any]:
+    """``["controller.switching_gain=4", "scenario=paper_1"]`` -> ``{"controller.switching_gain": 4, ...}``,
+    values typed as Hydra parses them (int, float, bool, str, list, ...); ``hydra.*`` left out."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parsed = OverridesParser.create().parse_overrides([o for o in overrides if not _is_hydra_override(o)])
+    return {o.get_key_element().lstrip("+~"): o.value() for o in parsed}
+
+
+def swept_values(jobs: dict[str, list[str]]) -> tuple[list[str], dict[str, dict[str, Any]]]:
+    """The keys whose value differs between jobs (in override order) and each job's typed values of them.
+
+    ``jobs`` maps a job's dir name to its overrides."""
+    typed = {name: _typed_overrides(ovs) for name, ovs in jobs.items()}
+    keys: list[str] = []
+    for values in typed.values():
+        keys.extend(k for k in values if k not in keys)
+    varying = [k for k in keys if len({repr(v.get(k, "<unset>")) for v in typed.values()}) > 1]
+    return varying, {name: {k: values.get(k) for k in varying} for name, values in typed.items()}
+
+
+def _cell(value: Any) -> Any:
+    """A table cell: numbers, strings, booleans and None as they are, anything else (a list) as text."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    from omegaconf import OmegaConf
+
+    return OmegaConf.to_yaml(value).strip() if isinstance(value, dict) else json.dumps(value)
+
+
+def _sort_key(column: "pd.Series") -> "pd.Series":
+    """Numbers sort as numbers (4, 8, 12), anything else as text; empty cells last."""
     import pandas as pd
 
-    state = load_sweep(sweep_dir)
-    rows, metric_frames, segment_frames = [], [], []
+    if pd.api.types.is_numeric_dtype(column.dtype) and not pd.api.types.is_bool_dtype(column.dtype):
+        return column
+    numeric = pd.to_numeric(column, errors="coerce")
+    if numeric.notna().sum() == column.notna().sum() and not column.map(lambda v: isinstance(v, bool)).any():
+        return numeric
+    return column.map(lambda v: None if v is None or v != v else str(v))
+
+
+def _sorted(frame: "pd.DataFrame", keys: list[str], then: Iterable[str] = ()) -> "pd.DataFrame":
+    by = [c for c in [*keys, *then] if c in frame.columns]
+    if not by or frame.empty:
+        return frame.reset_index(drop=True)
+    return frame.sort_values(by=by, key=_sort_key, kind="mergesort", na_position="last").reset_index(drop=True)
+
+
+def _job_overrides(state: SweepState) -> dict[str, list[str]]:
+    jobs = {d.name: list(s.get("overrides") or []) for d, s in state.complete + state.failed}
+    jobs.update({job["dir"]: list(job.get("overrides") or []) for job in state.missing})
+    return jobs
+
+
+def _per_seed(state: SweepState, keys: list[str], values: dict[str, dict], segments: bool) -> "pd.DataFrame":
+    import pandas as pd
+
+    name = io.SEGMENTS_CSV if segments else io.METRICS_CSV
+    frames = []
+    for job_dir, _ in state.complete:
+        frame = pd.read_csv(job_dir / name)
+        frame.insert(0, "job", job_dir.name)
+        after = frame.columns.get_loc("scenario") + 1 if "scenario" in frame.columns else 1
+        for i, key in enumerate(k for k in keys if k not in frame.columns):
+            frame.insert(after + i, key, [_cell(values[job_dir.name][key])] * len(frame))
+        frames.append(frame)
+    if not frames:
+        return pd.DataFrame(columns=["job", "controller", "scenario", *[k for k in keys if k not in _BASE_COLUMNS]])
+    table = pd.concat(frames, ignore_index=True)
+    return _sorted(table, keys, then=("seed",))
+
+
+def load_table(path, segments: bool = False) -> "pd.DataFrame":
+    """The tidy per-seed table of a sweep dir (or a run dir): one row per job and seed (``segments=True``: per
+    job, seed and terrain zone / scenario phase), every swept key a typed column, rows sorted by the swept
+    values (numbers as numbers), then by seed. Complete jobs only. This is ``ddmr_cli.load_sweep``."""
+    path = Path(path).expanduser()
+    if not path.is_dir():
+        raise FileNotFoundError(f"{path}: no such directory (expected a sweep dir from `ddmr run -m` or a run dir)")
+    state = read_state(path)
+    keys, values = swept_values(_job_overrides(state))
+    return _per_seed(state, keys, values, segments)
+
+
+# --- aggregation --------------------------------------------------------------------------------------------
+
+
+def jobs_table(state: SweepState, keys: list[str], values: dict[str, dict]) -> "pd.DataFrame":
+    """One row per job: its swept values, status, runs, diverged, mean and SD of the headline metrics."""
+    import pandas as pd
+
+    rows = []
     for job_dir, summary in state.complete + state.failed:
         stats = summary.get("statistics", {})
-        rows.append({"job": job_dir.name, "controller": summary.get("controller"), "scenario": summary.get("scenario"),
-                     "status": summary.get("status"), "runs": stats.get("runs"), "diverged": stats.get("diverged"),
-                     **{k: stats.get(k) for k in ("deviation_mae_mean", "deviation_mae_sd", "e_x_mae_mean",
-                                                  "e_y_mae_mean", "e_theta_mae_mean", "chattering_mean",
-                                                  "d_est_mae_mean")},
-                     "wall_time": summary.get("wall_time"), "error": summary.get("error", "")})
-        if summary.get("status") == "complete":
-            for name, frames in ((io.METRICS_CSV, metric_frames), (io.SEGMENTS_CSV, segment_frames)):
-                frame = pd.read_csv(job_dir / name)
-                frame.insert(0, "job", job_dir.name)
-                frames.append(frame)
+        row = {"job": job_dir.name, "controller": summary.get("controller"), "scenario": summary.get("scenario")}
+        row.update({k: _cell(values[job_dir.name][k]) for k in keys if k not in _BASE_COLUMNS})
+        row.update({"status": summary.get("status"), "runs": stats.get("runs"), "diverged": stats.get("diverged")})
+        for m in io.HEADLINE:
+            row[f"{m}_mean"], row[f"{m}_sd"] = stats.get(f"{m}_mean"), stats.get(f"{m}_sd")
+        row.update({"wall_time": summary.get("wall_time"), "error": summary.get("error", "")})
+        rows.append(row)
     for job in state.missing:
-        rows.append({"job": job["dir"], "status": "missing"})
-    jobs = pd.DataFrame(rows)
+        # a missing job has no summary: its swept group choices (controller=smc) stand for its names
+        rows.append({"job": job["dir"], **{k: _cell(values[job["dir"]][k]) for k in keys}, "status": "missing"})
+    frame = pd.DataFrame(rows)
+    if not frame.empty and "runs" in frame:
+        for column in ("runs", "diverged"):
+            frame[column] = frame[column].astype("Int64")
+    return _sorted(frame, keys, then=("job",))
+
+
+def _fmt(value: Any) -> str:
+    if value is None or (isinstance(value, float) and value != value):
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def summary_lines(jobs: "pd.DataFrame", keys: list[str], units: dict[str, str]) -> list[str]:
+    """The terminal summary: one row per job, swept keys and headline metrics, units in the header."""
+    import pandas as pd
+
+    label_keys = ["controller", "scenario", *[k for k in keys if k not in _BASE_COLUMNS]]
+    header = [*(f"{k} [{units[k]}]" if units.get(k) else k for k in label_keys), "runs", "diverged"]
+    metric_header = [f"{m} [{io.unit_of(m)}]" for m in io.HEADLINE]
+    header += [f"{metric_header[0]} (mean +- sd)", *metric_header[1:]]
+    rows = []
+    for _, job in jobs.iterrows():
+        cells = [_fmt(job.get(k)) for k in label_keys]
+        if job["status"] != "complete":
+            error = job.get("error") if isinstance(job.get("error"), str) else ""
+            rows.append((cells, f"{job['status']} {error}".strip()))
+            continue
+        first = io.HEADLINE[0]
+        cells += [_fmt(int(job["runs"])), _fmt(int(job["diverged"])),
+                  f"{_fmt(job[f'{first}_mean'])} +- {_fmt(job[f'{first}_sd'])}",
+                  *(_fmt(job[f"{m}_mean"]) for m in io.HEADLINE[1:])]
+        rows.append((cells, None))
+    widths = [max([len(h)] + [len(cells[i]) for cells, _ in rows if i < len(cells)]) for i, h in enumerate(header)]
+    numeric = [k in jobs and pd.api.types.is_numeric_dtype(jobs[k].dtype) for k in label_keys]
+    right = numeric + [True] * (len(header) - len(label_keys))
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(c.rjust(w) if r else c.ljust(w) for c, w, r in zip(cells, widths, right)).rstrip()
+
+    out = ["  " + line(header)]
+    for cells, note in rows:
+        out.append("  " + (line(cells) if note is None else f"{line(cells)}  {note}"))
+    return out
+
+
+def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
+    """Write the sweep-level tables and print the summary of the planned jobs; returns the sweep's state.
+    ``cfg`` (the sweep's composed config) gives the units of the swept keys."""
+    state = read_state(sweep_dir)
+    keys, values = swept_values(_job_overrides(state))
+    jobs = jobs_table(state, keys, values)
     io.write_csv(state.sweep_dir / JOBS_CSV, jobs)
-    if metric_frames:
-        io.write_csv(state.sweep_dir / SWEEP_METRICS_CSV, pd.concat(metric_frames, ignore_index=True))
-        io.write_csv(state.sweep_dir / SWEEP_SEGMENTS_CSV, pd.concat(segment_frames, ignore_index=True))
+    if state.complete:
+        io.write_csv(state.sweep_dir / SWEEP_METRICS_CSV, _per_seed(state, keys, values, segments=False))
+        io.write_csv(state.sweep_dir / SWEEP_SEGMENTS_CSV, _per_seed(state, keys, values, segments=True))
+    units = {}
+    if cfg is not None:
+        from ddmr_cli.cli.config import key_doc
+
+        for key in keys:
+            try:
+                units[key] = key_doc(cfg, key).unit
+            except KeyError:  # a key only some jobs' configs have
+                pass
     print(f"\nddmr sweep: {len(state.complete)} complete, {len(state.failed)} failed, {len(state.missing)} missing "
           f"-> {state.sweep_dir}")
-    for row in rows:
-        if row["status"] == "complete":
-            print(f"  {row['controller']:>18s} {row['scenario']:>8s}  runs {row['runs']:>5d} diverged {row['diverged']:>3d}"
-                  f"  deviation {row['deviation_mae_mean']:.5f} +- {row['deviation_mae_sd']:.5f} m"
-                  f"  e_x {row['e_x_mae_mean']:.5f}  e_y {row['e_y_mae_mean']:.5f}  e_th {row['e_theta_mae_mean']:.5f}")
-        else:
-            print(f"  {row['job']}: {row['status']} {row.get('error', '')}")
+    if not jobs.empty:
+        print("\n".join(summary_lines(jobs, keys, units)))
+    if state.unplanned:
+        print(f"  ({len(state.unplanned)} job dirs of an earlier sweep into this dir are not in this sweep's plan "
+              f"and not in its tables)")
     print(f"  tables: {JOBS_CSV}, {SWEEP_METRICS_CSV}, {SWEEP_SEGMENTS_CSV}; report: ddmr report {state.sweep_dir}")
     return state
 
@@ -133,15 +325,11 @@ class SweepAggregator(Callback):
     """Hydra callback: writes the sweep plan at the start and the sweep tables at the end of a multirun."""
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        global pending_plan
-        if pending_plan is not None:
-            sweep_dir = Path(config.hydra.sweep.dir)
-            io.write_json(sweep_dir / PLAN, {"jobs": pending_plan})
-            pending_plan = None
+        plan = plan_jobs(config.hydra.overrides.task, config.hydra)
+        io.write_json(Path(config.hydra.sweep.dir) / PLAN, {"jobs": plan})
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        global last_sweep
-        last_sweep = aggregate(Path(config.hydra.sweep.dir))
+        aggregate(Path(config.hydra.sweep.dir), config)
         _shutdown_joblib_workers()
 
 

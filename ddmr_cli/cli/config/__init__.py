@@ -2,13 +2,26 @@
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+import dataclasses
+from typing import Any, Callable, Iterator, Sequence
+
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
 from ddmr_cli.cli.config.build import build_simulation, config_hash, seeds_of
 from ddmr_cli.cli.config.validate import validate_config
 
 CONFIG_MODULE = "ddmr_cli.conf"
+MODEL_DOC = "docs/model.md"
+
+
+def _register_resolvers() -> None:
+    """``${ddmr.eq:a,b}``: true when the two (interpolated) strings are equal; e.g. per-job plots for one job of
+    a sweep (conf/experiment/smoke.yaml). Registered on import, in every process that composes a config."""
+    OmegaConf.register_new_resolver("ddmr.eq", lambda a, b: str(a) == str(b), replace=True)
+
+
+_register_resolvers()
 
 
 def compose_config(overrides: Sequence[str] = (), config_name: str = "config", return_hydra_config: bool = False):
@@ -42,4 +55,100 @@ def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     return simulate(sim, seeds_of(cfg), keep_series=list(cfg.run.keep_series), progress=progress)
 
 
-__all__ = ["compose_config", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of"]
+@dataclasses.dataclass(frozen=True)
+class KeyDoc:
+    """What the schema says about one key of a composed config (see :func:`ddmr_cli.cli.config.schema.param`)."""
+
+    key: str
+    value: Any
+    unit: str = ""
+    help: str = ""
+    range: str = ""
+    model: int | None = None
+    paper: str = ""
+    schema_name: str = ""
+    is_leaf: bool = True
+
+    @property
+    def reference(self) -> str:
+        """``docs/model.md §N`` (and the paper's place), or a dash for run settings outside the model."""
+        parts = [f"{MODEL_DOC} §{self.model}"] if self.model else []
+        if self.paper:
+            parts.append(f"paper {self.paper}")
+        return "; ".join(parts) or "-"
+
+
+def _fields(node_type) -> dict[str, dataclasses.Field]:
+    if isinstance(node_type, type) and dataclasses.is_dataclass(node_type):
+        return {f.name: f for f in dataclasses.fields(node_type)}
+    return {}
+
+
+def _value(node: Any, key: str) -> Any:
+    """The (resolved when possible) plain value of a child node."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        value = node[key]
+        return OmegaConf.to_container(value, resolve=True) if isinstance(value, (DictConfig, ListConfig)) else value
+    except OmegaConfBaseException:  # an interpolation that resolves only inside a Hydra job: show it as written
+        raw = node._get_node(key)._value()
+        return OmegaConf.to_container(raw) if isinstance(raw, (DictConfig, ListConfig)) else raw
+
+
+def key_doc(cfg: DictConfig, key: str) -> KeyDoc:
+    """The documentation of ``key`` (dotted) in a composed config; KeyError when the config has no such key.
+
+    The schema of a node is the dataclass it was composed from (``OmegaConf.get_type``), so ``controller.*``
+    is documented by the composed controller's schema; entries of free-form dicts (``terrain.zones.<name>``,
+    ``cluster.<key>``) by the dict field's metadata."""
+    node: Any = cfg
+    meta: Any = {}
+    schema_name = ""
+    parts = key.split(".")
+    for i, part in enumerate(parts):
+        if isinstance(node, ListConfig):  # an element of a list: the list's documentation
+            if not part.isdigit() or int(part) >= len(node) or i != len(parts) - 1:
+                raise KeyError(key)
+            return KeyDoc(key, node[int(part)], meta.get("unit", ""), meta.get("help", ""), meta.get("range", ""),
+                          meta.get("model"), meta.get("paper", ""), schema_name)
+        if not isinstance(node, DictConfig) or part not in node:
+            raise KeyError(key)
+        node_type = OmegaConf.get_type(node)
+        fields = _fields(node_type)
+        if part in fields:
+            meta, schema_name = fields[part].metadata, node_type.__name__
+        elif meta.get("entries") and part in meta["entries"]:  # a documented entry of a free-form dict
+            unit, text = meta["entries"][part]
+            meta = {"unit": unit, "help": text, "model": meta.get("model"), "paper": meta.get("paper", "")}
+        elif meta:  # an entry of a dict of schemas (a zone, a phase): the dict's documentation
+            meta = {**meta, "help": f"{part!r}: {meta.get('help', '')}", "range": ""}
+        if i == len(parts) - 1:
+            value = _value(node, part)
+            child = node._get_node(part)
+            leaf = not isinstance(child, DictConfig) or child._is_none() or len(child) == 0
+            return KeyDoc(key, value, meta.get("unit", ""), meta.get("help", ""), meta.get("range", ""),
+                          meta.get("model"), meta.get("paper", ""), schema_name, leaf)
+        node = node[part]
+    raise KeyError(key)
+
+
+def iter_keys(node: DictConfig, prefix: str = "") -> Iterator[str]:
+    """Every leaf key of a config (dotted, lists as one value), in the config's order; no ``hydra`` node."""
+    for name in node:
+        if not prefix and name == "hydra":
+            continue
+        child = node._get_node(name)
+        key = f"{prefix}{name}"
+        if isinstance(child, DictConfig) and not child._is_none() and len(child):
+            yield from iter_keys(node[name], f"{key}.")
+        else:
+            yield key
+
+
+def key_docs(cfg: DictConfig) -> list[KeyDoc]:
+    """:func:`key_doc` of every leaf key (``ddmr run --help``)."""
+    return [key_doc(cfg, key) for key in iter_keys(cfg)]
+
+
+__all__ = ["KeyDoc", "key_doc", "key_docs", "iter_keys", "compose_config", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of"]

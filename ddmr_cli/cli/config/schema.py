@@ -8,173 +8,279 @@ misspelt key or a wrong type is refused when the config is composed. Per-wheel g
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional
+from types import MappingProxyType
+from typing import Any, Callable, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
+
+
+def param(default: Any = MISSING, *, unit: str, help: str, range: str = "", model: int | None = None,
+          paper: str = "", factory: Callable[[], Any] | None = None, entries: dict | None = None) -> Any:
+    """A schema field with its documentation, the one place a key's meaning lives.
+
+    ``unit`` (``"1"`` dimensionless, ``""`` not a number), ``help`` (one line), ``range`` (the valid values, as
+    text; :mod:`ddmr_cli.cli.config.validate` enforces them), ``model`` (section of docs/model.md), ``paper``
+    (where the paper states it), ``entries`` (documentation of the keys of a free-form dict field).
+    ``ddmr run --help`` and ``ddmr explain KEY`` print them."""
+    metadata = {"unit": unit, "help": help, "range": range, "model": model, "paper": paper, "entries": entries}
+    if factory is not None:
+        return field(default_factory=factory, metadata=metadata)
+    return field(default=default, metadata=metadata)
+
+
+TARGET_HELP = "class instantiated from this node (only ddmr_cli.* classes are allowed)"
+PER_WHEEL = "a number or a [right, left] pair"
 
 
 @dataclass
 class RobotConfig:
     """Paper Table 2 plus motor constants (MODEL.md 1). Fields as :class:`ddmr_cli.model.robot.Robot`."""
 
-    mass: float = MISSING
-    wheel_radius: float = MISSING
-    track_width: float = MISSING
-    yaw_inertia: float = MISSING
-    wheel_inertia: float = MISSING
-    torque_constant: float = MISSING
-    back_emf_constant: float = MISSING
-    armature_resistance: float = MISSING
-    viscous_friction: float = MISSING
-    max_voltage: float = MISSING
+    mass: float = param(unit="kg", help="robot mass m", range="> 0", model=1, paper="Table 2")
+    wheel_radius: float = param(unit="m", help="wheel radius R", range="> 0", model=1, paper="Table 2")
+    track_width: float = param(unit="m", help="distance between the wheels 2L", range="> 0", model=1,
+                               paper="Table 2")
+    yaw_inertia: float = param(unit="kg m^2", help="yaw moment of inertia I_z of the robot", range="> 0", model=1,
+                               paper="Table 2")
+    wheel_inertia: float = param(unit="kg m^2", help="moment of inertia I_w of a wheel", range="> 0", model=1,
+                                 paper="Table 2")
+    torque_constant: float = param(unit="N m/A", help="motor torque constant k_t, at the wheel", range="> 0",
+                                   model=1, paper="not given (MODEL.md 1 Resolution)")
+    back_emf_constant: float = param(unit="V s/rad", help="motor back-EMF constant k_e, at the wheel", range="> 0",
+                                     model=1, paper="not given (MODEL.md 1 Resolution)")
+    armature_resistance: float = param(unit="ohm", help="armature resistance R_a", range="> 0", model=1,
+                                       paper="not given (MODEL.md 1 Resolution)")
+    viscous_friction: float = param(unit="N m s/rad", help="viscous friction b_v per wheel", range=">= 0", model=1,
+                                    paper="not given (MODEL.md 1 Resolution)")
+    max_voltage: float = param(unit="V", help="supply voltage U_max: u is saturated to [-U_max, U_max]",
+                               range="> 0", model=1, paper="4.1")
 
 
 @dataclass
 class ZoneConfig:
-    start: float = MISSING  # m of distance travelled
-    roughness: float = MISSING  # rad/s^2, scales the unit OU process
-    mu: float = MISSING  # rolling-resistance coefficient
+    start: float = param(unit="m", help="distance travelled at which the zone begins",
+                         range=">= 0; the first zone starts at 0, starts increasing", model=5, paper="Fig. 3")
+    roughness: float = param(unit="rad/s^2", help="scale of the zone's unit Ornstein-Uhlenbeck roughness n(t) in d",
+                             range=">= 0", model=5, paper="Fig. 3 (flat 0.1, slightly rough 5, very rough 100)")
+    mu: float = param(unit="1", help="rolling-resistance coefficient of the zone", range=">= 0", model=5,
+                      paper="Fig. 3 (flat 0.02, slightly rough 0.05, very rough 0.10)")
 
 
 @dataclass
 class TerrainConfig:
-    name: str = MISSING
-    correlation_time: float = 0.02
-    zones: Dict[str, ZoneConfig] = field(default_factory=dict)
+    name: str = param(unit="", help="label of the terrain", model=5)
+    correlation_time: float = param(0.02, unit="s", help="correlation time tau_c of the roughness process",
+                                    range="> 0", model=5)
+    zones: Dict[str, ZoneConfig] = param(unit="", help="zones along the distance travelled: name -> {start, "
+                                         "roughness, mu}", range="at least one zone", model=5, factory=dict)
 
 
 @dataclass
 class PhaseConfig:
-    start: float = MISSING  # s
-    roughness: bool = True
-    uncertainty: bool = False
+    start: float = param(unit="s", help="time at which the phase begins",
+                         range=">= 0; the first phase starts at 0, starts increasing", model=5, paper="Fig. 10")
+    roughness: bool = param(True, unit="", help="terrain roughness on in this phase (rolling resistance is always "
+                            "on)", range="true | false", model=5, paper="Fig. 10")
+    uncertainty: bool = param(False, unit="", help="damping uncertainty B(t) = B_nom (1 + delta(t)) on in this "
+                              "phase", range="true | false", model=5, paper="Fig. 10")
 
 
 @dataclass
 class UncertaintyConfig:
-    correlation_time: float = 0.5
-    std: float = 0.4
-    low: float = -0.5
-    high: float = 1.0
+    correlation_time: float = param(0.5, unit="s", help="correlation time of the OU process delta(t)", range="> 0",
+                                    model=5)
+    std: float = param(0.4, unit="1", help="standard deviation of delta(t), relative to B_nom", range=">= 0",
+                       model=5)
+    low: float = param(-0.5, unit="1", help="lower clip of delta(t)", range="> -1 (the true damping stays positive)",
+                       model=5)
+    high: float = param(1.0, unit="1", help="upper clip of delta(t)", range="> scenario.uncertainty.low", model=5)
 
 
 @dataclass
 class ScenarioConfig:
-    name: str = MISSING
-    phases: Dict[str, PhaseConfig] = field(default_factory=dict)
-    uncertainty: UncertaintyConfig = field(default_factory=UncertaintyConfig)
+    name: str = param(unit="", help="label of the scenario in tables and figures", model=5)
+    phases: Dict[str, PhaseConfig] = param(unit="", help="phases by time: name -> {start, roughness, uncertainty}",
+                                           range="at least one phase", model=5, paper="Fig. 10", factory=dict)
+    uncertainty: UncertaintyConfig = param(unit="", help="the damping uncertainty delta(t) of uncertain phases",
+                                           model=5, factory=UncertaintyConfig)
 
 
 @dataclass
 class NDOConfig:
-    _target_: str = "ddmr_cli.control.NonlinearDisturbanceObserver"
-    gain: Any = 50.0
+    _target_: str = param("ddmr_cli.control.NonlinearDisturbanceObserver", unit="", help=TARGET_HELP, model=6)
+    gain: Any = param(50.0, unit="1/s", help="observer gain L (Gamma = L I) of the nonlinear disturbance observer",
+                      range=f"> 0; {PER_WHEEL}; dt * L below the integrator's stability limit", model=6,
+                      paper="3.2, eqs. (21)-(22), Table 3")
 
 
 @dataclass
 class NNConfig:
-    _target_: str = "ddmr_cli.control.RBFNetworkObserver"
-    n_neurons: int = 10
-    width: float = 2.0
-    learning_rate: Any = 50.0
-    center_min: float = -40.0
-    center_max: float = 40.0
+    _target_: str = param("ddmr_cli.control.RBFNetworkObserver", unit="", help=TARGET_HELP, model=6)
+    n_neurons: int = param(10, unit="1", help="number of RBF neurons n", range="integer >= 1", model=6,
+                           paper="3.3, Table 3")
+    width: float = param(2.0, unit="rad/s", help="RBF width sigma", range="> 0", model=6,
+                         paper="3.3, Table 3 vs text (two readings)")
+    learning_rate: Any = param(50.0, unit="1/s^2", help="learning rate gamma of W' = -gamma Phi(x) s^T",
+                               range=f"> 0; {PER_WHEEL}", model=6, paper="eq. (25), Table 3 vs text (two readings)")
+    center_min: float = param(-40.0, unit="rad/s", help="lowest RBF centre c (centres (c, c), evenly spaced)",
+                              range="finite", model=6, paper="3.3")
+    center_max: float = param(40.0, unit="rad/s", help="highest RBF centre c",
+                              range="> controller.nn.center_min when n_neurons > 1", model=6, paper="3.3")
 
 
 @dataclass
 class PIDConfig:
-    _target_: str = "ddmr_cli.control.PID"
-    kp: Any = 5.0
-    ki: Any = 0.1
-    kd: Any = 0.01
-    anti_windup: bool = True
+    _target_: str = param("ddmr_cli.control.PID", unit="", help=TARGET_HELP, model=6)
+    kp: Any = param(5.0, unit="V s/rad", help="proportional gain K_p on the wheel-speed error e = w_d - w",
+                    range=f">= 0; {PER_WHEEL}; the sampled PD loop must be stable at simulation.dt", model=6,
+                    paper="Table 3")
+    ki: Any = param(0.1, unit="V/rad", help="integral gain K_i", range=f">= 0; {PER_WHEEL}", model=6,
+                    paper="Table 3")
+    kd: Any = param(0.01, unit="V s^2/rad", help="derivative gain K_d (backward difference)",
+                    range=f">= 0; {PER_WHEEL}; the sampled PD loop must be stable at simulation.dt", model=6,
+                    paper="Table 3")
+    anti_windup: bool = param(True, unit="", help="clamp the integrator while the voltage is saturated",
+                              range="true | false", model=6)
 
 
 @dataclass
 class SMCConfig:
-    _target_: str = "ddmr_cli.control.SMC"
-    name: str = "smc"
-    lam: Any = 25.0
-    switching_gain: Any = 12.0
-    boundary_layer: float = 0.1
-    surface: str = "proportional"
-    switching: str = "sat"
-    ndo: Optional[NDOConfig] = None
-    nn: Optional[NNConfig] = None
+    _target_: str = param("ddmr_cli.control.SMC", unit="", help=TARGET_HELP, model=6)
+    name: str = param("smc", unit="", help="label of the controller in tables and figures", model=6)
+    lam: Any = param(25.0, unit="1/s", help="lambda: linear term of the reaching law (integral surface: "
+                     "s = e + lambda int e)", range=f"> 0; {PER_WHEEL}; dt * (lam + switching_gain/boundary_layer) "
+                     "below the integrator's stability limit", model=6, paper="3.1, eq. (17), Table 3")
+    switching_gain: Any = param(12.0, unit="rad/s^2", help="switching gain K of K sat(s/Phi)",
+                                range=f">= 0; {PER_WHEEL}; dt * (lam + switching_gain/boundary_layer) below the "
+                                "integrator's stability limit", model=6, paper="3.1, eq. (17), Table 3")
+    boundary_layer: float = param(0.1, unit="rad/s", help="boundary layer Phi of sat(s/Phi) and tanh(s/Phi)",
+                                  range="> 0", model=6, paper="Table 3")
+    surface: str = param("proportional", unit="", help="sliding surface: s = e (eq. 10) or s = e + lambda int e",
+                         range="proportional | integral", model=6, paper="eq. (10)")
+    switching: str = param("sat", unit="", help="switching function of the reaching law", range="sign | sat | tanh",
+                           model=6, paper="3.1")
+    ndo: Optional[NDOConfig] = param(None, unit="", help="nonlinear disturbance observer (null: none)", model=6,
+                                     paper="3.2")
+    nn: Optional[NNConfig] = param(None, unit="", help="RBF neural-network observer (null: none)", model=6,
+                                   paper="3.3")
 
 
 @dataclass
 class OpenLoopConfig:
-    _target_: str = "ddmr_cli.control.OpenLoop"
-    voltage: Any = 0.0
+    _target_: str = param("ddmr_cli.control.OpenLoop", unit="", help=TARGET_HELP, model=6)
+    voltage: Any = param(0.0, unit="V", help="constant voltage, no feedback (plant checks)",
+                         range=f"finite; {PER_WHEEL}", model=6)
 
 
 @dataclass
 class LineConfig:
-    _target_: str = "ddmr_cli.model.trajectory.StraightLine"
-    speed: float = 1.0
-    heading: float = 0.0
-    x0: float = 0.0
-    y0: float = 0.0
+    _target_: str = param("ddmr_cli.model.trajectory.StraightLine", unit="", help=TARGET_HELP, model=3)
+    speed: float = param(1.0, unit="m/s", help="reference speed v_r along the line", range="finite", model=3,
+                         paper="4.2")
+    heading: float = param(0.0, unit="rad", help="direction of the line", range="finite", model=3)
+    x0: float = param(0.0, unit="m", help="x of the reference at t = 0", range="finite", model=3)
+    y0: float = param(0.0, unit="m", help="y of the reference at t = 0", range="finite", model=3)
 
 
 @dataclass
 class CircleConfig:
-    _target_: str = "ddmr_cli.model.trajectory.Circle"
-    speed: float = 1.0
-    radius: float = 2.0
+    _target_: str = param("ddmr_cli.model.trajectory.Circle", unit="", help=TARGET_HELP, model=3)
+    speed: float = param(1.0, unit="m/s", help="reference speed along the circle", range="finite", model=3)
+    radius: float = param(2.0, unit="m", help="radius of the circle", range="> 0", model=3)
 
 
 @dataclass
 class FigureEightConfig:
-    _target_: str = "ddmr_cli.model.trajectory.FigureEight"
-    amplitude: float = 3.0
-    period: float = 30.0
+    _target_: str = param("ddmr_cli.model.trajectory.FigureEight", unit="", help=TARGET_HELP, model=3)
+    amplitude: float = param(3.0, unit="m", help="half-width of the figure eight (lemniscate of Gerono)",
+                             range="> 0", model=3)
+    period: float = param(30.0, unit="s", help="time for one figure eight", range="> 0", model=3)
 
 
 @dataclass
 class OuterLoopConfig:
     """Kanayama gains (MODEL.md 3)."""
 
-    k_x: float = 10.0
-    k_y: float = 25.0
-    k_theta: float = 10.0
+    k_x: float = param(10.0, unit="1/s", help="Kanayama gain on the longitudinal error e_x", range=">= 0", model=3)
+    k_y: float = param(25.0, unit="1/m^2", help="Kanayama gain on the lateral error e_y", range=">= 0", model=3)
+    k_theta: float = param(10.0, unit="1/m", help="Kanayama gain on sin(e_theta) (critically damped: "
+                           "2 sqrt(k_y))", range=">= 0", model=3)
 
 
 @dataclass
 class SimulationConfig:
-    dt: float = 1e-3
-    duration: float = 15.0
-    integrator: str = "euler"
-    initial_pose: List[float] = field(default_factory=lambda: [0.0, 0.05, 0.05])
-    initial_wheel_speeds: Any = "reference"
-    divergence_bound: float = 1.0
+    dt: float = param(1e-3, unit="s", help="fixed time step of plant, controllers and metrics",
+                      range="> 0; <= simulation.duration; small enough that the sampled plant, observer, sliding "
+                      "surface and PID loops are stable (checked)", model=4)
+    duration: float = param(15.0, unit="s", help="simulated time of each run", range="> 0", model=4, paper="4.2")
+    integrator: str = param("euler", unit="", help="integration of the plant over a step", range="euler | rk4",
+                            model=4)
+    initial_pose: List[float] = param(unit="m, m, rad", help="initial pose [x, y, theta] of the robot",
+                                      range="3 finite numbers", model=3, paper="4.2",
+                                      factory=lambda: [0.0, 0.05, 0.05])
+    initial_wheel_speeds: Any = param("reference", unit="rad/s", help="initial wheel speeds: reference (rolling "
+                                      "at v_r), rest, or [w_R, w_L]", range="reference | rest | [w_R, w_L]",
+                                      model=4)
+    divergence_bound: float = param(1.0, unit="m", help="deviation beyond which a run is stopped and marked "
+                                    "diverged", range="> 0", model=7)
 
 
 @dataclass
 class RunConfig:
-    n_runs: int = 50
-    base_seed: int = 0
-    keep_series: List[int] = field(default_factory=lambda: [0])
-    plots: bool = True
-    progress: bool = True
-    threads: int = 0
+    n_runs: int = param(50, unit="1", help="seeds per job; Table 4 statistics are across them",
+                        range="integer >= 1", model=7, paper="Table 4 (50 runs)")
+    base_seed: int = param(0, unit="1", help="first seed: a job runs seeds base_seed .. base_seed + n_runs - 1",
+                           range="integer >= 0", model=5)
+    keep_series: List[int] = param(unit="1", help="seeds whose full time series are saved (series.npz, figures)",
+                                   range="integers >= 0", factory=lambda: [0])
+    plots: bool = param(True, unit="", help="PNG plots of the first kept seed in each job dir",
+                        range="true | false")
+    progress: bool = param(True, unit="", help="progress lines on the terminal and in the log",
+                           range="true | false")
+    threads: int = param(0, unit="1", help="threads of the compiled engine (0: all cores for a single run, 1 per "
+                         "job in a sweep)", range="integer >= 0")
+
+
+@dataclass
+class ReportConfig:
+    auto: bool = param(False, unit="", help="write the report (ddmr report) when the run or sweep ends; "
+                       "report=true is short for report.auto=true", range="true | false")
+    margin: Optional[float] = param(None, unit="", help="equivalence margin of the report's verdicts (null: the "
+                                    "report's default); passed to ddmr report when it takes one",
+                                    range="null or a number, as the report defines it", model=7)
+
+
+#: documentation of the launcher presets' ``cluster`` keys (conf/launcher/*.yaml), not model numbers
+CLUSTER_KEYS = MappingProxyType({
+    "cpus": ("1", "cpus: processes for the joblib launcher (-1 = all cores), cpus per job for submitit and ray"),
+    "partition": ("", "SLURM partition (-p); null = the cluster's default"),
+    "time_min": ("min", "wall-time limit per job"),
+    "mem_gb": ("GB", "memory per job"),
+    "jobs": ("1", "SLURM array tasks running at once"),
+    "address": ("", "Ray cluster address (ray://host:10001); null = start Ray locally"),
+})
 
 
 @dataclass
 class DDMRConfig:
-    robot: RobotConfig = MISSING
-    terrain: TerrainConfig = MISSING
-    controller: Any = MISSING
-    scenario: ScenarioConfig = MISSING
-    trajectory: Any = MISSING
-    outer_loop: OuterLoopConfig = field(default_factory=OuterLoopConfig)
-    simulation: SimulationConfig = field(default_factory=SimulationConfig)
-    run: RunConfig = field(default_factory=RunConfig)
-    experiment_name: str = "run"
-    #: launcher settings set by conf/launcher presets (partition, time_min, cpus, mem_gb, ...)
-    cluster: Dict[str, Any] = field(default_factory=dict)
+    robot: RobotConfig = param(unit="", help="the robot and its motors (conf/robot)", model=1)
+    terrain: TerrainConfig = param(unit="", help="terrain zones along the distance travelled (conf/terrain)",
+                                   model=5)
+    controller: Any = param(unit="", help="wheel-speed controller (conf/controller)", model=6)
+    scenario: ScenarioConfig = param(unit="", help="scenario phases and damping uncertainty (conf/scenario)",
+                                     model=5)
+    trajectory: Any = param(unit="", help="reference trajectory (conf/trajectory)", model=3)
+    outer_loop: OuterLoopConfig = param(unit="", help="Kanayama outer loop: pose error -> wheel-speed references",
+                                        model=3, factory=OuterLoopConfig)
+    simulation: SimulationConfig = param(unit="", help="time stepping, initial state, divergence", model=4,
+                                         factory=SimulationConfig)
+    run: RunConfig = param(unit="", help="seeds, kept series and display settings of a job", factory=RunConfig)
+    experiment_name: str = param("run", unit="", help="first level of the output dir outputs/<experiment_name>/")
+    cluster: Dict[str, Any] = param(unit="", help="launcher settings set by conf/launcher presets",
+                                    entries=CLUSTER_KEYS, factory=dict)
+    report: ReportConfig = param(unit="", help="the report written at the end of a run or sweep",
+                                 factory=ReportConfig)
 
 
 def register_configs() -> None:

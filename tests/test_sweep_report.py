@@ -1,0 +1,60 @@
+"""From sweep to report in one step: ``report=true``, ``report.margin`` passed through only when the report takes
+it, ``ddmr report`` without a path; and the one-line message for a launcher whose plugin is missing."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+
+import ddmr_cli.report
+from ddmr_cli.cli import main as cli
+
+
+def _fake_report(calls: list, with_margin: bool):
+    if with_margin:
+        def build_report(path, out=None, margin=None):
+            calls.append((path, out, margin))
+            return path
+    else:
+        def build_report(path, out=None):
+            calls.append((path, out))
+            return path
+    return build_report
+
+
+def test_report_shorthand_is_the_auto_key():
+    assert cli._normalise(["-m", "report=true", "report=False", "report.margin=0.1", "x.report=true"]) == [
+        "-m", "report.auto=true", "report.auto=false", "report.margin=0.1", "x.report=true"]
+
+
+def test_margin_is_refused_before_running_when_the_report_takes_none(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(ddmr_cli.report, "build_report", _fake_report([], with_margin=False))
+    assert cli.main(["run", "report=true", "report.margin=0.1", "run.n_runs=1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["ddmr: error: report.margin=0.1: this version of `ddmr report` takes no equivalence margin"]
+    assert list(tmp_path.iterdir()) == []
+    assert cli.main(["report", str(tmp_path), "--margin", "0.2"]) == 2
+
+
+def test_margin_is_passed_through_when_the_report_takes_one(tmp_path, monkeypatch, capsys):
+    calls: list = []
+    monkeypatch.setattr(ddmr_cli.report, "build_report", _fake_report(calls, with_margin=True))
+    assert cli.main(["report", str(tmp_path), "--margin", "0.05"]) == 0
+    assert calls == [(tmp_path, None, 0.05)]
+    assert cli.main(["report", str(tmp_path)]) == 0  # no margin given: the report's own default
+    assert len(calls[-1]) == 3 and calls[-1][2] is None
+    launch = cli.prepare(["report.margin=0.05"], ["report.margin=0.05", "run.n_runs=1"], multirun=False)
+    assert launch.margin == pytest.approx(0.05) and launch.report is False
+
+
+@pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is not None,
+                    reason="the ray extra is installed")
+def test_ray_launcher_missing_names_the_ray_extra(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["run", "-m", "+experiment=smoke", "launcher=ray"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "ddmr: error: launcher=ray: Hydra's ray launcher plugin is not installed; pip install 'ddmr-cli[ray]' "
+        "(or pip install -e '.[ray]' in a checkout)"]
+    assert list(tmp_path.iterdir()) == []
