@@ -26,7 +26,7 @@ terrain), reproducing and extending "SMC integrated with NDO and RBF neural netw
 
 commands:
   run [OVERRIDES...]      run a job (or a sweep with -m) from Hydra configs; `ddmr run --help` lists the
-                          config groups and options. Examples:
+                          config groups and every key with its value, unit and meaning. Examples:
                             ddmr run                                  # paper scenario 1, SMC-NDO-NNO, 50 seeds
                             ddmr run controller=pid scenario=paper_2 run.n_runs=10
                             ddmr run -m +experiment=table4            # Table 4: 4 controllers x 2 scenarios
