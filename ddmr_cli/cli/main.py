@@ -194,15 +194,6 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
     return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin)
 
 
-def prevalidate(overrides: list[str], multirun: bool, config_name: str = "config") -> int:
-    """0 when every job of the run or sweep composes and validates, else prints why (one line) and returns 2."""
-    try:
-        prepare(list(overrides), list(overrides), multirun, config_name)
-    except UsageError as exc:
-        return _fail(str(exc))
-    return 0
-
-
 def _normalise(argv: list[str]) -> list[str]:
     """``report=true`` is short for ``report.auto=true`` (``report`` is a node: auto, margin)."""
     out = []
