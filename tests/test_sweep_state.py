@@ -52,6 +52,22 @@ def test_read_state_with_a_plan_covers_exactly_the_planned_jobs(tmp_path):
     assert [d.name for d, _ in every.failed] == ["old"] and [j["dir"] for j in every.missing] == ["b"]
 
 
+def test_the_output_dir_is_resolved_once_and_pinned_for_hydra(tmp_path, monkeypatch):
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    monkeypatch.chdir(tmp_path)
+    args = ["-m", "experiment_name=\"it's, odd\"", "run.n_runs=1"]
+    launch = main.prepare(args, args[1:], multirun=True)
+    assert launch.out_dir.parent == tmp_path.joinpath("outputs", "it's, odd").relative_to(tmp_path)
+    pinned = launch.argv[-1]
+    assert pinned.startswith("hydra.sweep.dir=") and launch.argv[:-1] == tuple(args)
+    (parsed,) = OverridesParser.create().parse_overrides([pinned])
+    assert not parsed.is_sweep_override() and parsed.value() == str(launch.out_dir)
+    assert [job["overrides"] for job in launch.plan] == [args[1:]] and list(tmp_path.iterdir()) == []
+    again = main.prepare([*args, "hydra.sweep.dir=elsewhere"], [*args[1:], "hydra.sweep.dir=elsewhere"], True)
+    assert again.argv[-1] == "hydra.sweep.dir=elsewhere" and again.argv.count("hydra.sweep.dir=elsewhere") == 1
+
+
 @pytest.mark.slow
 def test_exit_status_ignores_job_dirs_of_an_earlier_sweep(tmp_path):
     sweep_dir = tmp_path / "sweep"

@@ -26,7 +26,7 @@ terrain), reproducing and extending "SMC integrated with NDO and RBF neural netw
 
 commands:
   run [OVERRIDES...]      run a job (or a sweep with -m) from Hydra configs; `ddmr run --help` lists the
-                          config groups and options. Examples:
+                          config groups and every key with its value, unit and meaning. Examples:
                             ddmr run                                  # paper scenario 1, SMC-NDO-NNO, 50 seeds
                             ddmr run controller=pid scenario=paper_2 run.n_runs=10
                             ddmr run -m +experiment=table4            # Table 4: 4 controllers x 2 scenarios
@@ -191,15 +191,6 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
     if multirun:
         print(f"ddmr: sweep of {len(plan)} jobs validated -> {out_dir}", file=sys.stderr)
     return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin)
-
-
-def prevalidate(overrides: list[str], multirun: bool, config_name: str = "config") -> int:
-    """0 when every job of the run or sweep composes and validates, else prints why (one line) and returns 2."""
-    try:
-        prepare(list(overrides), list(overrides), multirun, config_name)
-    except UsageError as exc:
-        return _fail(str(exc))
-    return 0
 
 
 def _normalise(argv: list[str]) -> list[str]:
