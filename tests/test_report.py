@@ -1,4 +1,11 @@
-"""``ddmr report`` on the smoke sweep: tables, figures, links, partial sweeps, single run dirs, the CLI."""
+"""``ddmr report`` on a small sweep built in-process: tables, figures, links, partial sweeps, single run dirs,
+the CLI.
+
+The sweep is the smoke experiment's (every controller x both scenarios, 2 seeds, 2 ms step, the full 15 s),
+written by :func:`ddmr_cli.cli.app.execute`, the function a ``ddmr run`` job calls, so its job dirs hold the same
+files as the console script's, with the sweep plan the CLI writes; no Hydra process per job, so the whole sweep
+takes seconds. Only the test of the console script itself is marked slow.
+"""
 
 from __future__ import annotations
 
@@ -9,11 +16,42 @@ from pathlib import Path
 
 import pytest
 
-from conftest import run_ddmr
-
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 SMOKE_CONTROLLERS = {"pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"}
 SCENARIOS = {"paper_1", "paper_2"}
+N_RUNS = 2
+COMMON = ("simulation.dt=0.002", f"run.n_runs={N_RUNS}", "run.keep_series=[0]", "run.plots=false")
+
+
+def write_job(out: Path, controller: str, scenario: str, extra=()) -> Path:
+    """One job dir, written by the same function a ``ddmr run`` job calls (plus the ``.hydra`` dir Hydra leaves,
+    which marks a started job even without a summary)."""
+    import ddmr_cli
+    from ddmr_cli.cli.app import execute
+
+    overrides = [f"controller={controller}", f"scenario={scenario}", *COMMON, *extra]
+    job = out / f"controller={controller},scenario={scenario}"
+    execute(ddmr_cli.compose_config(overrides), job, overrides)
+    (job / ".hydra").mkdir(exist_ok=True)
+    (job / ".hydra" / "overrides.yaml").write_text("".join(f"- {o}\n" for o in overrides))
+    return job
+
+
+@pytest.fixture(scope="session")
+def mini_sweep(tmp_path_factory) -> Path:
+    """Every controller x both scenarios, built in-process, with the sweep plan the console script writes."""
+    from ddmr_cli.cli import io
+    from ddmr_cli.cli.sweep import PLAN
+
+    sweep = tmp_path_factory.mktemp("mini") / "sweep"
+    plan = []
+    for controller in sorted(SMOKE_CONTROLLERS):
+        for scenario in sorted(SCENARIOS):
+            job = write_job(sweep, controller, scenario)
+            plan.append({"dir": job.name, "overrides": [f"controller={controller}", f"scenario={scenario}",
+                                                        *COMMON, f"hydra.sweep.dir={sweep}"]})
+    io.write_json(sweep / PLAN, {"jobs": plan})
+    return sweep
 
 
 def _files(root: Path) -> dict[str, float]:
@@ -21,12 +59,12 @@ def _files(root: Path) -> dict[str, float]:
 
 
 @pytest.fixture(scope="module")
-def smoke_report(smoke_sweep_dir, tmp_path_factory):
+def mini_report(mini_sweep, tmp_path_factory):
     """The report of a private copy of the smoke sweep, checking it writes only under its out dir."""
     from ddmr_cli.report import build_report
 
     sweep = tmp_path_factory.mktemp("report") / "sweep"
-    shutil.copytree(smoke_sweep_dir, sweep)
+    shutil.copytree(mini_sweep, sweep)
     before = _files(sweep.parent)
     out = build_report(sweep)
     after = _files(sweep.parent)
@@ -49,15 +87,15 @@ def _finite(frame, columns):
         assert all(math.isfinite(v) for v in vals), (col, list(vals))
 
 
-def test_report_layout(smoke_report):
-    assert (smoke_report / "report.md").is_file()
-    assert sorted(p.name for p in (smoke_report / "tables").glob("*.csv")) == sorted([
+def test_report_layout(mini_report):
+    assert (mini_report / "report.md").is_file()
+    assert sorted(p.name for p in (mini_report / "tables").glob("*.csv")) == sorted([
         "jobs.csv", "table3_parameters.csv", "table4.csv", "verdicts.csv", "chattering.csv", "energy.csv",
         "saturation.csv", "estimation.csv", "deviation_by_zone.csv", "deviation_by_phase.csv", "statistics.csv"])
 
 
-def test_table4_rows_columns_and_paper_numbers(smoke_report):
-    t4 = _read(smoke_report / "tables" / "table4.csv")
+def test_table4_rows_columns_and_paper_numbers(mini_report):
+    t4 = _read(mini_report / "tables" / "table4.csv")
     assert len(t4) == 10
     assert set(zip(t4["controller"], t4["scenario"])) == {(c, s) for c in SMOKE_CONTROLLERS for s in SCENARIOS}
     cols = ["deviation_mean", "deviation_sd", "e_x_mae", "e_y_mae", "e_theta_mae"]
@@ -73,8 +111,8 @@ def test_table4_rows_columns_and_paper_numbers(smoke_report):
     assert s2["paper_deviation_mean"].isna().all()  # the paper's Table 4 is compared with scenario 1 only
 
 
-def test_further_tables(smoke_report):
-    tables = smoke_report / "tables"
+def test_further_tables(mini_report):
+    tables = mini_report / "tables"
     for name, metrics in (("chattering.csv", ["chattering", "hf_fraction", "mean_voltage"]),
                           ("energy.csv", ["energy_u2", "electrical_energy"]),
                           ("saturation.csv", ["saturation_fraction", "saturated_time"]),
@@ -98,30 +136,30 @@ def test_further_tables(smoke_report):
     assert (t3.loc["smc_ndo_nno_text", "param_gamma"], t3.loc["smc_ndo_nno_text", "param_sigma"]) == (2.0, 50.0)
 
 
-def test_verdicts_table(smoke_report):
-    v = _read(smoke_report / "tables" / "verdicts.csv")
+def test_verdicts_table(mini_report):
+    v = _read(mini_report / "tables" / "verdicts.csv")
     assert set(v["claim"]) == {"ranking", "vs_smc_ndo", "vs_smc", "chattering", "estimation"}
     assert set(v["scenario"]) == SCENARIOS
     _finite(v, ["mean_a", "mean_b", "diff_ci_low", "diff_ci_high", "reduction", "p_value"])
     assert (v["n_pairs"] == 2).all()
     # two seeds cannot make any claim hold or fail: every verdict says so
     assert all(str(x).startswith("inconclusive") for x in v["verdict"])
-    md = (smoke_report / "report.md").read_text(encoding="utf-8")
+    md = (mini_report / "report.md").read_text(encoding="utf-8")
     section = md.split("## Verdicts on the paper's claims", 1)[1].split("\n## ", 1)[0]
     for title in ("Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO", "about 40 % lower", "over 60 % lower",
                   "near-complete elimination of chattering", "Disturbance-estimation MAE"):
         assert title in section
 
 
-def test_verdicts_are_reproducible(smoke_sweep_dir):
+def test_verdicts_are_reproducible(mini_sweep):
     from ddmr_cli.report import data, verdicts
 
-    rows = [verdicts.rows(verdicts.evaluate(data.load(smoke_sweep_dir))) for _ in range(2)]
+    rows = [verdicts.rows(verdicts.evaluate(data.load(mini_sweep))) for _ in range(2)]
     assert rows[0] == rows[1]
 
 
-def test_figures_are_valid_pngs(smoke_report):
-    figures = sorted((smoke_report / "figures").glob("*.png"))
+def test_figures_are_valid_pngs(mini_report):
+    figures = sorted((mini_report / "figures").glob("*.png"))
     names = {p.name for p in figures}
     for scenario in SCENARIOS:
         for stem in ("fig03_terrain", "fig04_trajectory", "fig05_deviation", "fig06_pose_errors",
@@ -137,35 +175,36 @@ def test_figures_are_valid_pngs(smoke_report):
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 200, path.name
 
 
-def test_report_links_resolve(smoke_report):
-    md = (smoke_report / "report.md").read_text(encoding="utf-8")
+def test_report_links_resolve(mini_report):
+    md = (mini_report / "report.md").read_text(encoding="utf-8")
     links = re.findall(r"\]\(([^)\s]+)\)", md)
     images = re.findall(r"!\[[^\]]*\]\(([^)\s]+)\)", md)
-    assert len(images) == len(list((smoke_report / "figures").glob("*.png")))
+    assert len(images) == len(list((mini_report / "figures").glob("*.png")))
     assert any(link.startswith("tables/") for link in links)
     for link in links:
-        assert (smoke_report / link).is_file(), link
+        assert (mini_report / link).is_file(), link
 
 
-def test_report_states_configuration(smoke_report, smoke_sweep_dir):
-    md = (smoke_report / "report.md").read_text(encoding="utf-8")
-    sweep = smoke_report.parent
-    assert f"ddmr run -m +experiment=smoke hydra.sweep.dir={sweep}" in md
+def test_report_states_configuration(mini_report, mini_sweep):
+    md = (mini_report / "report.md").read_text(encoding="utf-8")
+    sweep = mini_report.parent
+    assert "ddmr run -m controller=pid,smc,smc_ndo,smc_ndo_nno,smc_ndo_nno_text scenario=paper_1,paper_2" in md
+    assert f"hydra.sweep.dir={sweep}" in md
     assert f"ddmr report {sweep}" in md
     for text in ("simulation.dt | 0.002", "run.n_runs | 2", "Table 3 / eq. (25) reading", "text reading",
                  "compared against scenario 1", "None: every job of the sweep is complete"):
         assert text in md, text
 
 
-def test_partial_sweep(smoke_sweep_dir, tmp_path):
+def test_partial_sweep(mini_sweep, tmp_path):
     from ddmr_cli.report import build_report
 
     sweep = tmp_path / "partial"
-    shutil.copytree(smoke_sweep_dir, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
     (sweep / "controller=smc,scenario=paper_1" / "summary.json").unlink()   # killed mid-way
     shutil.rmtree(sweep / "controller=smc_ndo,scenario=paper_2")            # never started
     for job in ("controller=pid,scenario=paper_1", "controller=pid,scenario=paper_2"):
-        shutil.copy(smoke_sweep_dir / job / "series.npz", sweep / job / "series.npz")  # figures for some jobs
+        shutil.copy(mini_sweep / job / "series.npz", sweep / job / "series.npz")  # figures for some jobs
     out = build_report(sweep, tmp_path / "out")
     assert out == tmp_path / "out"
     md = (out / "report.md").read_text(encoding="utf-8")
@@ -192,13 +231,13 @@ def test_partial_sweep(smoke_sweep_dir, tmp_path):
     assert not (sweep / "report").exists()  # --out elsewhere: nothing written into the sweep
 
 
-def test_failed_job_is_listed(smoke_sweep_dir, tmp_path):
+def test_failed_job_is_listed(mini_sweep, tmp_path):
     import json
 
     from ddmr_cli.report import build_report
 
     sweep = tmp_path / "failed"
-    shutil.copytree(smoke_sweep_dir, sweep, ignore=shutil.ignore_patterns("report", "series.npz", "plots"))
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz", "plots"))
     job = sweep / "controller=pid,scenario=paper_2"
     summary = json.loads((job / "summary.json").read_text())
     (job / "summary.json").write_text(json.dumps({**summary, "status": "failed",
@@ -208,11 +247,11 @@ def test_failed_job_is_listed(smoke_sweep_dir, tmp_path):
     assert "controller=pid,scenario=paper_2" in missing and "SimulationError: boom" in missing
 
 
-def test_single_run_dir(smoke_sweep_dir, tmp_path):
+def test_single_run_dir(mini_sweep, tmp_path):
     from ddmr_cli.report import build_report
 
     run = tmp_path / "run"
-    shutil.copytree(smoke_sweep_dir / "controller=smc_ndo_nno,scenario=paper_2", run)
+    shutil.copytree(mini_sweep / "controller=smc_ndo_nno,scenario=paper_2", run)
     out = build_report(run)
     md = (out / "report.md").read_text(encoding="utf-8")
     assert "From the run dir" in md
@@ -236,9 +275,12 @@ def test_errors(tmp_path):
         build_report(tmp_path / "empty")
 
 
-def test_cli(smoke_sweep_dir, tmp_path):
+@pytest.mark.slow
+def test_cli(mini_sweep, tmp_path):
+    from conftest import run_ddmr
+
     run = tmp_path / "run"  # one job is enough for the CLI's plumbing (and fast)
-    shutil.copytree(smoke_sweep_dir / "controller=smc_ndo,scenario=paper_1", run)
+    shutil.copytree(mini_sweep / "controller=smc_ndo,scenario=paper_1", run)
     out = tmp_path / "cli_out"
     proc = run_ddmr(["report", str(run), "--out", str(out)], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
