@@ -289,3 +289,47 @@ def test_cli(mini_sweep, tmp_path):
     proc = run_ddmr(["report", str(tmp_path / "missing")], cwd=tmp_path)
     assert proc.returncode == 2
     assert "no such directory" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_captions_promise_only_what_is_drawn(mini_report):
+    figures = (mini_report / "report.md").read_text(encoding="utf-8").split("## Figures", 1)[1]
+    assert "dotted lines mark" not in figures and "phases (dotted)" not in figures
+    assert "shaded bands alternate the terrain zones" in figures
+    assert "shaded bands alternate the scenario's phases" in figures
+
+
+def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path):
+    """The forked path draws what the in-process path draws, and a failing figure fails the report."""
+    from ddmr_cli.report import data as D
+    from ddmr_cli.report import figures as F
+
+    data = D.load(mini_sweep)
+    tasks = [("paper_1", "fig_spread"), ("paper_2", "fig_spread")]
+    forked = F._run_forked(data, tmp_path / "forked", tasks, 2)
+    serial = [F.make_one(data, tmp_path / "serial", t) for t in tasks]
+    assert [[(f.path.name, f.caption) for f in figs] for figs, _ in forked] == \
+           [[(f.path.name, f.caption) for f in figs] for figs, _ in serial]
+    assert all((tmp_path / "forked" / f"{s}_deviation_spread.png").is_file() for s in ("paper_1", "paper_2"))
+    with pytest.raises(RuntimeError, match="fig_nonexistent of paper_1 failed"):
+        F._run_forked(data, tmp_path / "bad", [("paper_1", "fig_nonexistent")], 1)
+
+
+def test_run_plots_use_the_shared_decimation(tmp_path):
+    import numpy as np
+
+    from ddmr_cli.report.plotting import thin
+    from ddmr_cli.report.run_plots import envelope, run_plots
+
+    t = np.linspace(0, 10, 100_001)
+    y = np.sin(2 * np.pi * 50 * t)
+    y[12_345] = 7.0  # a lone spike survives the decimation
+    x_thin, y_thin = envelope(t, y)
+    assert len(y_thin) < 6000 and y_thin.max() == pytest.approx(7.0)
+    assert np.array_equal(x_thin, t[thin(y)])
+    series = {c: np.zeros_like(t) for c in ("x_ref", "y_ref", "x", "y", "deviation", "e_x", "e_y", "e_theta",
+                                            "u_right", "u_left", "s_right", "s_left", "d_true_right",
+                                            "d_hat_ndo_right", "d_hat_nn_right")}
+    series.update(t=t, x_ref=t, x=t, u_right=y)
+    paths = run_plots(series, "smc", "paper_1", 0, tmp_path)
+    assert [p.name for p in paths] == ["trajectory.png", "errors.png", "control.png"]
+    assert all(p.read_bytes()[:8] == PNG_SIGNATURE for p in paths)

@@ -299,7 +299,6 @@ class Report:
         for note in notes:
             self.add(f"- Note: {note}")
         self.add("")
-        self.figure_list = [f.path for figs in figures.values() for f in figs]
 
     def files(self) -> None:
         self.add("## Tables (CSV)", "")

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from ddmr_cli.cli import io
 from ddmr_cli.errors import DDMRError
-from ddmr_cli.report.run_plots import label_of
+from ddmr_cli.report.plotting import label_of
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -120,9 +120,6 @@ class ReportData:
     def scenarios(self) -> list[str]:
         names = sorted({j.scenario for j in self.jobs})
         return ([PAPER_SCENARIO] if PAPER_SCENARIO in names else []) + [n for n in names if n != PAPER_SCENARIO]
-
-    def jobs_of(self, scenario: str) -> list[Job]:
-        return [j for j in self.jobs if j.scenario == scenario]
 
     def keys(self, scenario: str | None = None) -> list[str]:
         """Controller keys in the paper's order."""

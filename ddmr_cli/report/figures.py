@@ -1,24 +1,23 @@
 """Figures mirroring the paper's (Figs. 3-14), one PNG each, per scenario, from the jobs' kept time series.
 
 Each figure uses one seed: the first kept seed common to every job of the scenario, so every controller
-faces the same terrain. Long lines are thinned to at most :data:`MAX_POINTS` points by keeping each bin's
+faces the same terrain. Long lines are thinned (:func:`~ddmr_cli.report.plotting.thin`) by keeping each bin's
 minimum and maximum (the envelope of a chattering signal survives); zoom panels are drawn at full resolution.
 """
 
 from __future__ import annotations
 
 import math
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ddmr_cli.cli import io
-from ddmr_cli.report.run_plots import color_of, pyplot
 from ddmr_cli.report.data import Job, ReportData
+from ddmr_cli.report.plotting import color_of, pyplot, save, thin
 
-MAX_POINTS = 5000
-DPI = 110
 ZOOM_WIDTH = 0.3  # s
 LINESTYLES = ("-", "--", ":", "-.")
 REFERENCE_STYLE = {"color": "0.55", "ls": "--", "lw": 1.4}   # reference path / true disturbance: grey dashed
@@ -30,19 +29,6 @@ class Figure:
     path: Path
     title: str
     caption: str
-
-
-def thin(y: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
-    """Indices keeping each bin's min and max, at most about ``max_points`` of them."""
-    n = len(y)
-    if n <= max_points:
-        return np.arange(n)
-    k = int(math.ceil(n / (max_points // 2)))
-    m = n // k * k
-    bins = np.nan_to_num(np.asarray(y[:m], float), nan=0.0).reshape(-1, k)
-    base = np.arange(0, m, k)
-    idx = np.concatenate([base + bins.argmin(axis=1), base + bins.argmax(axis=1), np.arange(m, n), [0, n - 1]])
-    return np.unique(idx)
 
 
 def _legend(ax) -> None:
@@ -117,6 +103,11 @@ class ScenarioFigures:
             ends = [p[0] for p in phases[1:]] + [t_end]
             return [(start, end, f"phase: {name}") for (start, name), end in zip(phases, ends)]
         return self._zone_spans("t")
+
+    def _spans_text(self) -> str:
+        """What the shading of a time axis means (see :meth:`_decorate_time`)."""
+        return ("shaded bands alternate the scenario's phases (named at the top)" if self._phases()
+                else "shaded bands alternate the terrain zones (named at the top)")
 
     def _decorate_time(self, ax, labels: bool = False):
         """Shade every other phase (or terrain zone) on a time axis and name them at the top."""
@@ -227,8 +218,7 @@ class ScenarioFigures:
         _legend(ax)
         ax.grid(alpha=0.3, which="both")
         self._save(fig, "fig05_deviation", "Deviation vs time (paper Figs. 5 and 11)",
-                   "Distance to the reference point over time, log scale; shaded bands alternate terrain zones, "
-                   "dotted lines mark scenario phases.")
+                   f"Distance to the reference point over time, log scale; {self._spans_text()}.")
 
     def _time_panels(self, axes, jobs, keys, ylabels, zero_line: bool = False) -> bool:
         """One channel per panel against time, every job a line; returns whether a y range was clipped."""
@@ -343,8 +333,8 @@ class ScenarioFigures:
             self._decorate_time(ax, labels=ax is ax1)
             ax.grid(alpha=0.3)
         self._save(fig, "fig10_environment", "Roughness and damping profile (paper Fig. 10)",
-                   "Scenario phases (dotted): the roughness amplitude the terrain applies, and the true viscous "
-                   "damping relative to its nominal value (the parametric uncertainty).")
+                   f"The roughness amplitude the terrain applies and the true viscous damping relative to its nominal "
+                   f"value (the parametric uncertainty); {self._spans_text()}.")
 
     def fig_spread(self, plt):
         keys = self.data.keys(self.scenario)
@@ -374,15 +364,6 @@ class ScenarioFigures:
                    "One point per seed (non-diverged runs), box: quartiles and median.")
 
 
-def save(fig, path: Path) -> Path:
-    """Save a PNG atomically and close the figure: one layout pass, then a single draw (``save_figure``'s
-    ``bbox_inches="tight"`` draws twice, which dominates the report's run time)."""
-    fig.tight_layout()
-    io.atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=DPI))
-    pyplot().close(fig)
-    return Path(path)
-
-
 def common_seed(jobs: list[Job]) -> int | None:
     """The first kept seed common to every job (None when there is none)."""
     if not jobs or not all((j.dir / io.SERIES).is_file() for j in jobs):
@@ -397,29 +378,32 @@ def common_seed(jobs: list[Job]) -> int | None:
 FIGURE_METHODS = ("fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
                   "fig_voltage", "fig_sliding", "fig_environment", "fig_spread")
 
-_PARENT: dict = {}  # what forked workers inherit: the report data and the output dir
-
-
-def _make_one(task: tuple[str, str]) -> tuple[list[Figure], list[str]]:
+def make_one(data: ReportData, out_dir: Path, task: tuple[str, str]) -> tuple[list[Figure], list[str]]:
+    """One figure task ``(scenario, method)``: its figures and notes."""
     scenario, method = task
-    sf = ScenarioFigures(_PARENT["data"], scenario, _PARENT["out_dir"])
+    sf = ScenarioFigures(data, scenario, out_dir)
     if sf.seed is None and method != "fig_spread":
         if method == FIGURE_METHODS[0]:
             sf.notes.append(f"{scenario}: no kept time-series seed common to every job (run.keep_series); "
                             f"time-series figures skipped")
         return [], sf.notes
-    _style(pyplot())
     getattr(sf, method)(pyplot())
     return sf.figures, sf.notes
 
 
-def _style(plt) -> None:
-    plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "legend.fontsize": 8,
-                         "path.simplify": True, "agg.path.chunksize": 10000})
+def _worker(data, out_dir, tasks, results) -> None:
+    """A forked figure process: takes ``(i, task)`` from ``tasks`` until None, puts ``(i, result, error)``.
+    Its arguments are inherited through the fork, not pickled; only the small results travel back."""
+    while (item := tasks.get()) is not None:
+        i, task = item
+        try:
+            results.put((i, make_one(data, out_dir, task), None))
+        except BaseException:  # noqa: BLE001 - reported to the parent, which raises it
+            results.put((i, None, traceback.format_exc()))
 
 
 def workers(n_tasks: int) -> int:
-    """Figure processes: forked on Linux (so they share the loaded data), at most 4, else one;
+    """Figure processes: forked on Linux (they inherit the loaded data), at most 4, else one;
     ``DDMR_REPORT_WORKERS`` overrides the count."""
     import multiprocessing
     import os
@@ -432,24 +416,66 @@ def workers(n_tasks: int) -> int:
     return max(1, min(n, n_tasks))
 
 
+def _run_forked(data: ReportData, out_dir: Path, tasks: list, n: int) -> list:
+    """Run ``tasks`` in ``n`` forked processes, each handed the data explicitly; results in task order."""
+    import multiprocessing
+    import queue
+
+    ctx = multiprocessing.get_context("fork")
+    task_q, result_q = ctx.Queue(), ctx.Queue()
+    procs = [ctx.Process(target=_worker, args=(data, out_dir, task_q, result_q), daemon=True) for _ in range(n)]
+    for p in procs:
+        p.start()
+    for item in enumerate(tasks):
+        task_q.put(item)
+    for _ in procs:
+        task_q.put(None)
+    results: list = [None] * len(tasks)
+    pending = len(tasks)
+    try:
+        while pending:
+            try:
+                i, result, error = result_q.get(timeout=1.0)
+            except queue.Empty:
+                if not any(p.is_alive() for p in procs):
+                    raise RuntimeError("a figure process died without reporting") from None
+                continue
+            if error is not None:
+                raise RuntimeError(f"figure {tasks[i][1]} of {tasks[i][0]} failed:\n{error}")
+            results[i] = result
+            pending -= 1
+    finally:
+        for p in procs:
+            p.join(timeout=5)
+            if p.is_alive():
+                p.terminate()
+    return results
+
+
+def _warm_up() -> None:
+    """Initialise in the parent what every figure process needs (matplotlib's fonts and text layout), so the
+    forked processes share it instead of each paying for it."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(2, 2))
+    ax.plot([0, 1], [0, 1], label="d̂ σ θ")
+    ax.set_title("warm-up")
+    ax.legend()
+    fig.canvas.draw()
+    plt.close(fig)
+
+
 def make_figures(data: ReportData, out_dir: Path) -> tuple[dict[str, list[Figure]], list[str]]:
-    """All figures, per scenario (in parallel processes when the machine has several cores); returns them and
+    """All figures, per scenario (in forked processes when the machine has several cores); returns them and
     notes on what was skipped."""
     tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
     for scenario in data.scenarios:  # read the series once, before any fork
         ScenarioFigures(data, scenario, out_dir)
-    _PARENT.update(data=data, out_dir=Path(out_dir))
-    try:
-        n = workers(len(tasks))
-        if n > 1:
-            import multiprocessing
-
-            with multiprocessing.get_context("fork").Pool(n) as pool:
-                results = pool.map(_make_one, tasks, chunksize=1)
-        else:
-            results = [_make_one(task) for task in tasks]
-    finally:
-        _PARENT.clear()
+    n = workers(len(tasks))
+    if n > 1:
+        _warm_up()
+        results = _run_forked(data, Path(out_dir), tasks, n)
+    else:
+        results = [make_one(data, Path(out_dir), task) for task in tasks]
     figures: dict[str, list[Figure]] = {s: [] for s in data.scenarios}
     notes: list[str] = []
     for (scenario, _), (figs, task_notes) in zip(tasks, results):
