@@ -137,18 +137,30 @@ def test_further_tables(mini_report):
 
 
 def test_verdicts_table(mini_report):
+    import numpy as np
+
     v = _read(mini_report / "tables" / "verdicts.csv")
     assert set(v["claim"]) == {"ranking", "vs_smc_ndo", "vs_smc", "chattering", "estimation"}
     assert set(v["scenario"]) == SCENARIOS
-    _finite(v, ["mean_a", "mean_b", "diff_ci_low", "diff_ci_high", "reduction", "p_value"])
-    assert (v["n_pairs"] == 2).all()
-    # two seeds cannot make any claim hold or fail: every verdict says so
-    assert all(str(x).startswith("inconclusive") for x in v["verdict"])
+    _finite(v, ["mean_a", "mean_b", "diff_ci_low", "diff_ci_high", "diff_pct", "reduction", "margin", "p_value"])
+    # the percent difference is the difference relative to the reference's mean
+    assert np.allclose(v["diff_pct"], 100 * v["diff"] / v["mean_a"])
+    dev = v[v["metric"] == "deviation_mae"]
+    assert not dev.empty and np.allclose(dev["margin"], 1e-4)  # 0.1 mm on the deviation
+    chat = v[v["metric"] == "chattering"]
+    assert np.allclose(chat["margin"], 0.05 * chat["mean_a"].abs())  # 5 % of the reference elsewhere
+    assert (v["n_pairs"] == N_RUNS).all()
+    # two seeds cannot make any claim hold, fail or tie: every verdict says so
+    assert (v["verdict_category"] == "inconclusive").all()
+    assert all("only 2 paired seeds" in x for x in v["verdict"])
     md = (mini_report / "report.md").read_text(encoding="utf-8")
     section = md.split("## Verdicts on the paper's claims", 1)[1].split("\n## ", 1)[0]
     for title in ("Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO", "about 40 % lower", "over 60 % lower",
                   "near-complete elimination of chattering", "Disturbance-estimation MAE"):
         assert title in section
+    for rule in ("**holds**", "**tie**", "**does not hold**", "**inconclusive**", "Practical margin: ±0.1 mm"):
+        assert rule in section
+    assert "Claims not checked" not in section  # every claim is checkable on this sweep
 
 
 def test_verdicts_are_reproducible(mini_sweep):
@@ -258,7 +270,12 @@ def test_single_run_dir(mini_sweep, tmp_path):
     assert f"hydra.run.dir={run}" in md and "ddmr run -m" not in md
     t4 = _read(out / "tables" / "table4.csv")
     assert list(t4["controller"]) == ["smc_ndo_nno"] and list(t4["scenario"]) == ["paper_2"]
-    assert "skipped" in md  # verdicts need other controllers
+    verdicts = md.split("## Verdicts on the paper's claims", 1)[1].split("\n## ", 1)[0]
+    # no verdict applies: the summary says so once, the claims are listed once with each reason once
+    assert "no claim could be checked with these jobs" in verdicts
+    assert verdicts.count("### Claims not checked") == 1
+    assert verdicts.count("no complete smc_ndo job in paper_2") == 1
+    assert "skipped" not in verdicts
     for link in re.findall(r"\]\(([^)\s]+)\)", md):
         assert (out / link).is_file(), link
     assert (out / "figures" / "paper_2_fig05_deviation.png").is_file()
@@ -275,6 +292,18 @@ def test_errors(tmp_path):
         build_report(tmp_path / "empty")
 
 
+def test_cli_margin_flag(mini_sweep, tmp_path, capsys):
+    from ddmr_cli.cli.main import main
+
+    run = tmp_path / "run"
+    shutil.copytree(mini_sweep / "controller=smc_ndo,scenario=paper_1", run, ignore=shutil.ignore_patterns("*.npz"))
+    assert main(["report", str(run), "--out", str(tmp_path / "o"), "--margin", "0.05mm"]) == 0
+    md = (tmp_path / "o" / "report.md").read_text(encoding="utf-8")
+    assert "Practical margin: ±0.05 mm" in md and "--margin 0.05mm" in md
+    assert main(["report", str(run), "--out", str(tmp_path / "p"), "--margin", "lots"]) == 2
+    assert "margin" in capsys.readouterr().err and not (tmp_path / "p").exists()
+
+
 @pytest.mark.slow
 def test_cli(mini_sweep, tmp_path):
     from conftest import run_ddmr
@@ -282,10 +311,11 @@ def test_cli(mini_sweep, tmp_path):
     run = tmp_path / "run"  # one job is enough for the CLI's plumbing (and fast)
     shutil.copytree(mini_sweep / "controller=smc_ndo,scenario=paper_1", run)
     out = tmp_path / "cli_out"
-    proc = run_ddmr(["report", str(run), "--out", str(out)], cwd=tmp_path)
+    proc = run_ddmr(["report", str(run), "--out", str(out), "--margin", "5%"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert str(out) in proc.stdout
-    assert (out / "report.md").is_file()
+    assert "Practical margin: ±5 % of the reference controller's mean for every metric" in \
+        (out / "report.md").read_text(encoding="utf-8")
     proc = run_ddmr(["report", str(tmp_path / "missing")], cwd=tmp_path)
     assert proc.returncode == 2
     assert "no such directory" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1

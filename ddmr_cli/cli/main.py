@@ -163,12 +163,21 @@ def cmd_report(argv: list[str]) -> int:
                                      "(PNG) from a sweep dir or a single run dir, beside the paper's numbers.")
     parser.add_argument("path", help="a sweep dir (ddmr run -m ...) or a single run dir")
     parser.add_argument("--out", default=None, help="output dir (default: PATH/report)")
+    parser.add_argument("--margin", default=None,
+                        help="practical margin of the verdicts: a length (0.1mm, the default; 1e-4 in metres) for "
+                             "the metrics in metres, 5%% of the reference's mean for the others; or a percentage "
+                             "(5%%) for every metric. A paired difference whose 95%% CI lies inside it is a tie")
     args = parser.parse_args(argv)
     from ddmr_cli.errors import DDMRError
     from ddmr_cli.report import build_report
+    from ddmr_cli.report.stats import Margin
 
     try:
-        out = build_report(args.path, args.out)
+        margin = Margin.parse(args.margin)
+    except ValueError as exc:
+        return _fail(str(exc))
+    try:
+        out = build_report(args.path, args.out, margin)
     except (DDMRError, FileNotFoundError) as exc:
         return _fail(str(exc))
     print(f"ddmr: report written to {out}")

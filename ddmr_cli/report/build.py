@@ -14,6 +14,7 @@ from ddmr_cli.report import tables as T
 from ddmr_cli.report import verdicts as V
 from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
 from ddmr_cli.report.figures import common_seed, make_figures
+from ddmr_cli.report.stats import Margin
 
 #: Settings shown in the configuration section (dotted config keys).
 KEY_SETTINGS = ("simulation.dt", "simulation.duration", "simulation.integrator", "simulation.initial_pose",
@@ -46,8 +47,8 @@ def nn_reading(params: dict) -> str | None:
 
 
 class Report:
-    def __init__(self, data: ReportData, out: Path):
-        self.data, self.out = data, out
+    def __init__(self, data: ReportData, out: Path, margin: Margin | None = None):
+        self.data, self.out, self.margin = data, out, margin or Margin()
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
         self.csvs: list[tuple[str, Path]] = []
@@ -82,6 +83,10 @@ class Report:
         report_cmd = f"ddmr report {shlex.quote(str(d.path))}"
         if self.out != d.path / "report":
             report_cmd += f" --out {shlex.quote(str(self.out))}"
+        if self.margin != Margin():
+            m = self.margin
+            spec = f"{1000 * m.metres:g}mm" if m.metres is not None else f"{100 * m.relative:g}%"
+            report_cmd += f" --margin {shlex.quote(spec)}"
         self.add("## Configuration", "", "Regenerate the results (jobs already complete with the same config hash are "
                  "skipped) and this report:", "", "```sh", d.run_command(), report_cmd, "```", "")
         flat = {j.dir.name: flatten(j.config) for j in d.jobs}
@@ -194,9 +199,9 @@ class Report:
     def verdicts(self) -> None:
         import pandas as pd
 
-        results = V.evaluate(self.data)
+        results = V.evaluate(self.data, self.margin)
         link = self.csv("verdicts.csv", pd.DataFrame(V.rows(results)), "paired comparisons behind the verdicts")
-        self.add(V.markdown(self.data, results), f"Every paired comparison: {link}.", "")
+        self.add(V.markdown(self.data, results, self.margin), f"Every paired comparison: {link}.", "")
 
     def voltage_ranges(self, stats):
         """1st–99th percentile of u_R for t >= 1 s in the figures' seed, per scenario and controller."""
@@ -324,10 +329,11 @@ class Report:
         return self.out
 
 
-def build(path, out=None) -> Path:
+def build(path, out=None, margin=None) -> Path:
+    margin = Margin.parse(margin)
     data = load(path)
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return Report(data, out_dir).build()
+    return Report(data, out_dir, margin).build()
 
 
 __all__ = ["build", "Report", "Job"]
