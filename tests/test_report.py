@@ -126,7 +126,7 @@ def test_further_tables(mini_report):
     assert set(zones["zone"]) == {"flat", "very_rough", "slightly_rough"}
     assert len(zones) == 10 * 3
     _finite(zones, ["deviation_mae_mean", "e_x_mae_mean", "chattering_mean"])
-    phases = _read(tables / "deviation_by_phase.csv")
+    phases = _read(tables / "deviation_by_phase.csv")  # the CSV keeps scenario 1's single phase
     assert set(phases.loc[phases["scenario"] == "paper_2", "phase"]) == {"terrain", "uncertainty", "both"}
     assert len(phases) == 5 * 1 + 5 * 3
     t3 = _read(tables / "table3_parameters.csv").set_index("controller")
@@ -363,3 +363,74 @@ def test_run_plots_use_the_shared_decimation(tmp_path):
     paths = run_plots(series, "smc", "paper_1", 0, tmp_path)
     assert [p.name for p in paths] == ["trajectory.png", "errors.png", "control.png"]
     assert all(p.read_bytes()[:8] == PNG_SIGNATURE for p in paths)
+
+
+def test_single_phase_table_dropped(mini_report):
+    """Scenario 1 has one phase: its per-phase table would repeat Table 4."""
+    md = (mini_report / "report.md").read_text(encoding="utf-8")
+    section = md.split("## Deviation per scenario phase", 1)[1].split("\n## ", 1)[0]
+    assert "### paper_2" in section and "### paper_1" not in section
+    assert "`paper_1`: a single phase" in section
+
+
+def test_mean_sd_cells_have_no_spurious_precision(mini_report):
+    md = (mini_report / "report.md").read_text(encoding="utf-8")
+    cells = re.findall(r"\| ([^|]*±[^|]*) \|", md)
+    assert cells
+    for cell in cells:
+        assert not re.search(r"±\s*\d(\.\d+)?e-(1\d|[2-9]\d)", cell), cell  # no SD of 1e-10 and below
+
+
+# --- forward-compatible input: steady-state columns -------------------------------------------------------------
+SS_METRICS = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae")
+
+
+def _add_steady_state(sweep: Path, factor: dict[str, float]) -> None:
+    """Constructed ``<metric>_ss`` columns: the whole-run value times a per-controller factor."""
+    import json
+
+    import pandas as pd
+
+    for job in sweep.iterdir():
+        if not (job / "metrics.csv").is_file():
+            continue
+        controller = json.loads((job / "summary.json").read_text())["controller"]
+        frame = pd.read_csv(job / "metrics.csv")
+        for m in SS_METRICS:
+            frame[m + "_ss"] = frame[m] * factor.get(controller, 1.0)
+        frame.to_csv(job / "metrics.csv", index=False)
+
+
+def test_steady_state_columns_are_used(mini_sweep, tmp_path):
+    import numpy as np
+
+    from ddmr_cli.report import build_report
+
+    sweep = tmp_path / "ss"
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
+    _add_steady_state(sweep, {"smc_ndo_nno": 0.25})
+    out = build_report(sweep)
+    t4 = _read(out / "tables" / "table4.csv").set_index(["scenario", "controller"])
+    assert np.allclose(t4["deviation_mean_ss"].loc[("paper_1", "smc_ndo_nno")],
+                       0.25 * t4["deviation_mean"].loc[("paper_1", "smc_ndo_nno")])
+    assert np.allclose(t4["e_x_mae_ss"].loc[("paper_1", "pid")], t4["e_x_mae"].loc[("paper_1", "pid")])
+    md = (out / "report.md").read_text(encoding="utf-8")
+    table4 = md.split("## Table 4: tracking performance over seeds", 1)[1].split("\n## ", 1)[0]
+    assert "Steady-state columns are present" in table4
+    header = next(line for line in table4.splitlines() if line.startswith("| Controller"))
+    assert "Whole run: Deviation mean (m)" in header and "Steady state: Deviation mean (m)" in header
+    assert header.index("Whole run: e_θ") < header.index("Steady state: Deviation mean")  # side by side, in order
+    v = _read(out / "tables" / "verdicts.csv")
+    dev = v[v["claim"].isin(["ranking", "vs_smc_ndo", "vs_smc"])]
+    assert set(dev["metric"]) == {"deviation_mae_ss"}
+    row = dev[(dev["claim"] == "vs_smc_ndo") & (dev["scenario"] == "paper_1") & (dev["candidate"] == "smc_ndo_nno")]
+    assert row["reduction"].iloc[0] > 0.5  # the constructed steady-state numbers, not the whole-run ones
+    assert "use the steady-state deviation" in md.split("## Verdicts on the paper's claims", 1)[1]
+
+
+def test_without_steady_state_columns_whole_run_is_used(mini_report):
+    md = (mini_report / "report.md").read_text(encoding="utf-8")
+    v = _read(mini_report / "tables" / "verdicts.csv")
+    assert set(v.loc[v["claim"] == "ranking", "metric"]) == {"deviation_mae"}
+    assert not any(c.endswith("_ss") for c in _read(mini_report / "tables" / "table4.csv"))
+    assert "whole-run deviation MAE" in md and "Steady state:" not in md

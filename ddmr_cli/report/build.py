@@ -102,6 +102,8 @@ class Report:
         readings = list(dict.fromkeys(f"{j.controller}: {r}" for j in d.jobs
                                       if (r := nn_reading(j.summary.get("parameters") or {}))))
         rows.append(["NN-parameter reading (MODEL.md 6)", "; ".join(readings) if readings else "no NN observer"])
+        steady = {k: _fmt_value(v) for f in flat.values() for k, v in f.items() if "steady" in k.lower()}
+        rows += [[k, v] for k, v in sorted(steady.items())]
         self.add(T.md_table(["Setting", "Value"], rows), "")
         all_keys = set().union(*flat.values()) if flat else set()
         differ = sorted(k for k in all_keys if not k.startswith(("controller.", "scenario."))
@@ -185,6 +187,10 @@ class Report:
                  f"ours/paper. Names map pid → PID, smc → SMC, smc_ndo → SMC+NDO, smc_ndo_nno → SMC-NDO-NN; "
                  f"**smc_ndo_nno_text (the other reading of the NN parameters, MODEL.md 6) is compared to the same "
                  f"SMC-NDO-NN row**. The paper prints e_θ in m; it is rad.", "")
+        if T.has_ss(t4):
+            self.add("**Steady-state columns are present** (`<metric>_ss` in the jobs' metrics.csv, the engine's "
+                     "steady-state window): each table shows the whole-run block (compared with the paper) and the "
+                     "steady-state block side by side; the deviation verdicts use the steady-state deviation.", "")
         if PAPER_SCENARIO not in d.scenarios:
             self.add(f"(No `{PAPER_SCENARIO}` job in this sweep: no comparison with the paper's numbers.)", "")
         for scenario in d.scenarios:
@@ -282,14 +288,24 @@ class Report:
                                   ("phase", "Deviation per scenario phase", "phases of the scenario in time")):
             frame = T.segment_frame(d, kind)
             link = self.csv(f"deviation_by_{kind}.csv", frame, title.lower())
-            self.add(f"## {title}", "", f"Deviation MAE (m), mean ± SD over seeds, within each of the {what} "
-                     f"({link}; also e_x, e_y, e_θ, chattering, estimation MAE and saturation there).", "")
             if frame.empty:
-                self.add("(no segment rows)", "")
+                self.add(f"## {title}", "", f"(no segment rows; {link})", "")
                 continue
+            shown, single = [], []
             for scenario in d.scenarios:
-                if (frame["scenario"] == scenario).any():
-                    self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
+                part = frame[frame["scenario"] == scenario]
+                if part.empty:
+                    continue
+                (shown if part[kind].nunique() > 1 else single).append(scenario)
+            self.add(f"## {title}", "")
+            if shown:
+                self.add(f"Deviation MAE (m), mean ± SD over seeds, within each of the {what} ({link}; also e_x, "
+                         f"e_y, e_θ, chattering, estimation MAE and saturation there).", "")
+            if single:
+                self.add(f"{', '.join(f'`{x}`' for x in single)}: a single {kind} — its table would repeat Table 4 "
+                         f"(the rows are in {link}).", "")
+            for scenario in shown:
+                self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
 
     def figures(self) -> None:
         figures, notes = make_figures(self.data, self.figures_dir)
