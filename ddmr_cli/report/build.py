@@ -10,10 +10,12 @@ import numpy as np
 
 from ddmr_cli.cli import io
 from ddmr_cli.engine.metrics import METRICS
+from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
 from ddmr_cli.report import verdicts as V
 from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
 from ddmr_cli.report.figures import common_seed, make_figures
+from ddmr_cli.report.plotting import OKABE_ITO, StyleBook, label_of
 from ddmr_cli.report.stats import Margin
 
 #: Settings shown in the configuration section (dotted config keys).
@@ -49,6 +51,7 @@ def nn_reading(params: dict) -> str | None:
 class Report:
     def __init__(self, data: ReportData, out: Path, margin: Margin | None = None):
         self.data, self.out, self.margin = data, out, margin or Margin()
+        self.styles = StyleBook(j.controller for j in data.jobs)
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
         self.csvs: list[tuple[str, Path]] = []
@@ -282,6 +285,38 @@ class Report:
                 est, scenario, [("d_est_mae", "d estimation MAE"), ("d_est_mae_ndo", "NDO part alone"),
                                 ("s_mae", "s MAE (rad/s)")], extra if scenario == PAPER_SCENARIO else ()), "")
 
+    def nn_share(self) -> None:
+        """The NN's share of the disturbance estimate and of the voltage, per NNO job, from its kept series."""
+        import pandas as pd
+
+        d = self.data
+        rows = []
+        for scenario in d.scenarios:
+            for key in d.keys(scenario):
+                job = d.job(scenario, key)
+                runs = list(d.all_series(job).values())
+                if not runs or not any(S.has_nn(r) for r in runs):
+                    continue
+                share = S.nn_share(runs, S.nominal_input_inverse(job.config.get("robot")))
+                rows.append({"scenario": scenario, "controller": job.controller, "key": key, "label": job.label,
+                             "reading": nn_reading(job.summary.get("parameters") or {}) or "",
+                             "series_seeds": len(runs), **share})
+        if not rows:
+            return
+        frame = pd.DataFrame(rows)
+        link = self.csv("nn_share.csv", frame, "the NN's share of the disturbance estimate and of u")
+        self.add("## The NN's share of the estimate", "",
+                 f"For each job with an NN observer, over its kept time series (both wheels): mean |d̂_NDO|, mean "
+                 f"|d̂_NN|, the NN's share of the estimate mean |d̂_NN| / mean |d̂_NDO + d̂_NN|, and the voltage the NN "
+                 f"term adds through eq. (17), mean |g⁻¹ d̂_NN| (nominal g), against the mean |u| applied ({link}). "
+                 f"Figure: *The NN's share of the disturbance estimate* below.", "")
+        self.add(T.md_table(
+            ["Scenario", "Controller", "Seeds", "mean |d̂_NDO| (rad/s²)", "mean |d̂_NN| (rad/s²)",
+             "NN share of the estimate", "mean |g⁻¹ d̂_NN| (V)", "NN share of |u|"],
+            [[r["scenario"], r["label"], r["series_seeds"], T.fmt(r["mean_abs_d_ndo"], 3),
+              T.fmt(r["mean_abs_d_nn"], 3), T.pct(r["share_of_estimate"]), T.fmt(r["mean_abs_u_nn"], 3),
+              T.pct(r["share_of_u"])] for r in rows]), "")
+
     def segments(self) -> None:
         d = self.data
         for kind, title, what in (("zone", "Deviation per terrain zone", "zones along the distance travelled"),
@@ -308,10 +343,19 @@ class Report:
                 self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
 
     def figures(self) -> None:
-        figures, notes = make_figures(self.data, self.figures_dir)
-        self.add("## Figures", "", "One colour per controller in every figure (PID red, SMC blue, SMC-NDO cyan, "
-                 "SMC-NDO-NNO black, text reading purple); the reference and the true disturbance are grey dashed. "
-                 "Each scenario's time-series figures use the first kept seed common to all its jobs.", "")
+        figures, notes = make_figures(self.data, self.figures_dir, self.styles)
+        present = list(dict.fromkeys(j.controller for j in self.data.jobs))
+        names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
+        legend = "; ".join(f"{label_of(c)} {names.get(self.styles[c].color, self.styles[c].color)} "
+                           f"{self.styles[c].dash}" + (f" with {self.styles[c].marker} markers"
+                                                        if self.styles[c].marker else "") for c in present)
+        self.add("## Figures", "",
+                 f"Colour-blind-safe colours (Okabe–Ito) and a distinct line style per controller, the same in every "
+                 f"figure: {legend}. The reference and the true disturbance are grey dashed. Overlapping lines are "
+                 f"drawn widest-spread first, or split into one panel per controller (same scale). Each scenario's "
+                 f"time-series figures use the first kept seed common to all its jobs; where the jobs wrote "
+                 f"bands.npz, the mean over all seeds and the 5–95 % band are drawn with that seed. Every caption "
+                 f"ends with what the paper reports for the figure and what we see.", "")
         for scenario, figs in figures.items():
             self.add(f"### {scenario}", "")
             for f in figs:
@@ -337,6 +381,7 @@ class Report:
         self.verdicts()
         self.effort(stats)
         self.estimation(stats)
+        self.nn_share()
         self.segments()
         self.figures()
         self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
