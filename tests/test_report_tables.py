@@ -30,3 +30,11 @@ def test_pm(mean, sd, expected):
 
 def test_fmt():
     assert fmt(0.0187) == "0.0187" and fmt(math.nan) == "–" and fmt(0) == "0" and fmt(2.5e-5) == "2.500e-05"
+
+
+def test_md_table_right_aligns_numbers_in_shared_exponent_form():
+    from ddmr_cli.report.tables import md_table
+
+    table = md_table(["Controller", "slightly_rough (m)"], [["SMC", pm(0.00038, 0.00013)],
+                                                            ["SMC-NDO", pm(2.25e-5, 0.94e-5)]])
+    assert table.splitlines()[1] == "| --- | ---: |"
