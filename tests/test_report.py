@@ -477,6 +477,24 @@ def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path)
         F._run_forked(data, tmp_path / "bad", styles, [("paper_1", "fig_nonexistent")], 1)
 
 
+def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
+    """The paper's line: y against x; a circle: the lateral error against the distance travelled."""
+    from ddmr_cli.report import data as D
+    from ddmr_cli.report.figures import ScenarioFigures
+    from ddmr_cli.report.plotting import StyleBook, pyplot
+
+    circle = tmp_path / "circle"
+    write_job(circle, "smc_ndo", "paper_1", extra=("trajectory=circle",))
+    captions = {}
+    for name, path in (("line", mini_sweep), ("circle", circle)):
+        sf = ScenarioFigures(D.load(path), "paper_1", tmp_path / name, StyleBook(CONTROLLERS))
+        sf.fig_trajectory(pyplot())
+        captions[name] = sf.figures[-1].caption
+        assert sf.figures[-1].path.is_file()
+    assert "bottom: lateral position in mm" in captions["line"]
+    assert "bottom: lateral error in mm" in captions["circle"]
+
+
 # --- the CLI -------------------------------------------------------------------------------------------------
 def test_cli_margin_flag(mini_sweep, tmp_path, capsys):
     from ddmr_cli.cli.main import main

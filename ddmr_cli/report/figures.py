@@ -280,37 +280,52 @@ class ScenarioFigures:
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 6.5), gridspec_kw={"height_ratios": [1, 1.3]})
         s0 = self._s(self.ref)
         ordered = self._ordered(self.jobs, "e_y")
-        for ax, scale in ((ax1, 1.0), (ax2, 1000.0)):
-            idx = thin(s0["y_ref"])
-            ax.plot(s0["x_ref"][idx], s0["y_ref"][idx] * scale, label="reference", zorder=10, **REFERENCE_STYLE)
-            for job in ordered:
-                s = self._s(job)
-                idx = thin(s["y"])
-                ax.plot(s["x"][idx], s["y"][idx] * scale, label=job.label, **self.style(job))
-            ax.grid(alpha=0.3)
+        idx = thin(s0["y_ref"])
+        ax1.plot(s0["x_ref"][idx], s0["y_ref"][idx], label="reference", zorder=10, **REFERENCE_STYLE)
+        for job in ordered:
+            s = self._s(job)
+            idx = thin(s["y"])
+            ax1.plot(s["x"][idx], s["y"][idx], label=job.label, **self.style(job))
         equal_aspect(ax1)
         ax1.set(xlabel="x [m]", ylabel="y [m]", title=self._title("Fig. 4: trajectories (equal axes)"))
         _legend(ax1, ["reference"] + self._labels())
-        x0 = float(s0["x_ref"][0]) + 1.0
-        ax2.set_xlim(x0, float(np.nanmax(s0["x_ref"])))
-        later = [self._s(j)["y"][self._s(j)["x"] >= x0] * 1000 for j in self.jobs]
-        vals = np.concatenate(later + [s0["y_ref"][s0["x_ref"] >= x0] * 1000])
+        # zoom: the lateral offset in mm after the first metre; for a reference along the x axis (the paper's
+        # line) the position y against x as in the paper, for any other path the lateral error e_y against the
+        # distance travelled
+        along_x = float(np.ptp(s0["y_ref"])) < 1e-9 and float(np.ptp(np.cos(s0["theta_ref"]))) < 1e-9
+        if along_x:
+            xs = {j.key: self._s(j)["x"] for j in self.jobs}
+            ys = {j.key: self._s(j)["y"] * 1000 for j in self.jobs}
+            idx = thin(s0["y_ref"])
+            ax2.plot(s0["x_ref"][idx], s0["y_ref"][idx] * 1000, zorder=10, **REFERENCE_STYLE)
+            xlabel, ylabel, what = "x [m]", "y [mm]", "lateral position"
+        else:
+            xs = {j.key: self._s(j).get("distance", self._s(j)["t"]) for j in self.jobs}
+            ys = {j.key: self._s(j)["e_y"] * 1000 for j in self.jobs}
+            ax2.axhline(0, **REFERENCE_STYLE)
+            xlabel, ylabel, what = "distance travelled [m]", "e_y [mm]", "lateral error"
+        x0 = float(min(x[0] for x in xs.values())) + 1.0
+        for job in ordered:
+            idx = thin(ys[job.key])
+            ax2.plot(xs[job.key][idx], ys[job.key][idx], **self.style(job))
+        ax2.set_xlim(x0, float(max(np.nanmax(x) for x in xs.values())))
+        vals = np.concatenate([ys[k][xs[k] >= x0] for k in ys] + ([np.array([0.0])] if not along_x else []))
         vals = vals[np.isfinite(vals)]
         if vals.size:
             pad = 0.1 * (vals.max() - vals.min() or 1.0)
             ax2.set_ylim(vals.min() - pad, vals.max() + pad)
-        ax2.set(xlabel="x [m]", ylabel="y [mm]",
-                title=f"zoom: lateral position after x = {x0:g} m (mm; not to scale)")
+        ax2.set(xlabel=xlabel, ylabel=ylabel, title=f"zoom: {what} after the first metre (mm; not to scale)")
+        for ax in (ax1, ax2):
+            ax.grid(alpha=0.3)
         worst = []
         for job in self.jobs:
-            s = self._s(job)
-            m = s["x"] >= x0
-            worst.append((job.label, float(np.nanmax(np.abs(s["deviation"][m]))) if m.any() else math.nan))
+            m = xs[job.key] >= x0
+            worst.append((job.label, float(np.nanmax(np.abs(self._s(job)["deviation"][m]))) if m.any() else math.nan))
         worst.sort(key=lambda lv: -lv[1] if math.isfinite(lv[1]) else 0.0)
         self._save(fig, "fig04_trajectory", "Trajectories of all controllers (paper Fig. 4)",
-                   "Paths in the plane with the reference (grey dashed), equal scale on both axes; bottom: lateral "
-                   f"position in mm after the first metre. {self.paper_says('trajectory')} Ours — largest deviation "
-                   f"after the first metre: {_listing([(l, _mm(v)) for l, v in worst])}.")
+                   f"Paths in the plane with the reference (grey dashed), equal scale on both axes; bottom: {what} in "
+                   f"mm after the first metre. {self.paper_says('trajectory')} Ours — largest deviation after the "
+                   f"first metre: {_listing([(l, _mm(v)) for l, v in worst])}.")
 
     def fig_deviation(self, plt):
         fig, ax = plt.subplots(figsize=(11, 4.2))

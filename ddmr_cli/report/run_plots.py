@@ -28,7 +28,7 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     paths = []
 
     fig, ax = plt.subplots(figsize=(8, 3.5))
-    _plot(ax, series["x_ref"], series["y_ref"], label="reference", **REFERENCE_STYLE)
+    _plot(ax, series["x_ref"], series["y_ref"], label="reference", zorder=10, **REFERENCE_STYLE)
     _plot(ax, series["x"], series["y"], label=label_of(controller), **style)
     equal_aspect(ax)
     ax.set(xlabel="x [m]", ylabel="y [m]", title=f"Trajectory (equal axes): {title}")
