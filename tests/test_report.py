@@ -1,19 +1,58 @@
-"""``ddmr report`` on the smoke sweep: tables, figures, links, partial sweeps, single run dirs, the CLI."""
+"""``ddmr report`` end to end on a small sweep built in-process: tables, figures, links, partial sweeps, single run
+dirs, forward-compatible inputs (steady-state columns, bands.npz), the CLI.
+
+The sweep is written by :func:`ddmr_cli.cli.app.execute`, the function a ``ddmr run`` job calls, so its job dirs
+hold the same files as the console script's (no Hydra process per job: the whole sweep takes seconds). Only the
+test of the console script itself is marked slow.
+"""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from conftest import run_ddmr
-
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-SMOKE_CONTROLLERS = {"pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"}
-SCENARIOS = {"paper_1", "paper_2"}
+CONTROLLERS = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text")
+SCENARIOS = ("paper_1", "paper_2")
+N_RUNS = 2
+#: The smoke experiment's settings (2 ms step, 2 seeds, the full 15 s so every zone and phase is crossed).
+COMMON = ("simulation.dt=0.002", f"run.n_runs={N_RUNS}", "run.keep_series=[0]", "run.plots=false")
+
+
+def write_job(out: Path, controller: str, scenario: str, extra=()) -> Path:
+    """One job dir, written by the same function a ``ddmr run`` job calls."""
+    import ddmr_cli
+    from ddmr_cli.cli.app import execute
+
+    overrides = [f"controller={controller}", f"scenario={scenario}", *COMMON, *extra]
+    job = out / f"controller={controller},scenario={scenario}"
+    execute(ddmr_cli.compose_config(overrides), job, overrides)
+    (job / ".hydra").mkdir(exist_ok=True)  # as Hydra leaves it: marks a started job even without a summary
+    (job / ".hydra" / "overrides.yaml").write_text("".join(f"- {o}\n" for o in overrides))
+    return job
+
+
+@pytest.fixture(scope="session")
+def mini_sweep(tmp_path_factory) -> Path:
+    """Every controller x both scenarios, built in-process, with the sweep plan the console script writes."""
+    from ddmr_cli.cli import io
+    from ddmr_cli.cli.sweep import PLAN
+
+    sweep = tmp_path_factory.mktemp("mini") / "sweep"
+    plan = []
+    for controller in CONTROLLERS:
+        for scenario in SCENARIOS:
+            job = write_job(sweep, controller, scenario)
+            plan.append({"dir": job.name, "overrides": [f"controller={controller}", f"scenario={scenario}",
+                                                        *COMMON, f"hydra.sweep.dir={sweep}"]})
+    io.write_json(sweep / PLAN, {"jobs": plan})
+    return sweep
 
 
 def _files(root: Path) -> dict[str, float]:
@@ -21,12 +60,12 @@ def _files(root: Path) -> dict[str, float]:
 
 
 @pytest.fixture(scope="module")
-def smoke_report(smoke_sweep_dir, tmp_path_factory):
-    """The report of a private copy of the smoke sweep, checking it writes only under its out dir."""
+def mini_report(mini_sweep, tmp_path_factory):
+    """The report of a private copy of the sweep, checking it writes only under its out dir."""
     from ddmr_cli.report import build_report
 
     sweep = tmp_path_factory.mktemp("report") / "sweep"
-    shutil.copytree(smoke_sweep_dir, sweep)
+    shutil.copytree(mini_sweep, sweep)
     before = _files(sweep.parent)
     out = build_report(sweep)
     after = _files(sweep.parent)
@@ -43,27 +82,43 @@ def _read(path: Path):
     return pd.read_csv(path)
 
 
+def _md(report: Path) -> str:
+    return (report / "report.md").read_text(encoding="utf-8")
+
+
+def _section(md: str, title: str) -> str:
+    return md.split(f"## {title}", 1)[1].split("\n## ", 1)[0]
+
+
 def _finite(frame, columns):
     for col in columns:
         vals = frame[col].astype(float)
         assert all(math.isfinite(v) for v in vals), (col, list(vals))
 
 
-def test_report_layout(smoke_report):
-    assert (smoke_report / "report.md").is_file()
-    assert sorted(p.name for p in (smoke_report / "tables").glob("*.csv")) == sorted([
+def _links_resolve(out: Path, md: str) -> None:
+    for link in re.findall(r"\]\(([^)\s]+)\)", md):
+        assert (out / link).is_file(), link
+
+
+# --- the full report -----------------------------------------------------------------------------------------
+def test_report_layout(mini_report):
+    assert (mini_report / "report.md").is_file()
+    assert sorted(p.name for p in (mini_report / "tables").glob("*.csv")) == sorted([
         "jobs.csv", "table3_parameters.csv", "table4.csv", "verdicts.csv", "chattering.csv", "energy.csv",
-        "saturation.csv", "estimation.csv", "deviation_by_zone.csv", "deviation_by_phase.csv", "statistics.csv"])
+        "saturation.csv", "estimation.csv", "nn_share.csv", "deviation_by_zone.csv", "deviation_by_phase.csv",
+        "statistics.csv"])
 
 
-def test_table4_rows_columns_and_paper_numbers(smoke_report):
-    t4 = _read(smoke_report / "tables" / "table4.csv")
-    assert len(t4) == 10
-    assert set(zip(t4["controller"], t4["scenario"])) == {(c, s) for c in SMOKE_CONTROLLERS for s in SCENARIOS}
+def test_table4_rows_columns_and_paper_numbers(mini_report):
+    t4 = _read(mini_report / "tables" / "table4.csv")
+    assert len(t4) == len(CONTROLLERS) * len(SCENARIOS)
+    assert set(zip(t4["controller"], t4["scenario"])) == {(c, s) for c in CONTROLLERS for s in SCENARIOS}
     cols = ["deviation_mean", "deviation_sd", "e_x_mae", "e_y_mae", "e_theta_mae"]
     assert {"runs", "diverged", *cols, *(f"paper_{c}" for c in cols), *(f"ratio_{c}" for c in cols)} <= set(t4)
+    assert not any(c.endswith("_ss") for c in t4)  # the jobs have no steady-state columns
     _finite(t4, cols)
-    assert (t4["runs"] == 2).all() and (t4["diverged"] == 0).all()
+    assert (t4["runs"] == N_RUNS).all() and (t4["diverged"] == 0).all()
     s1 = t4[t4["scenario"] == "paper_1"].set_index("controller")
     assert s1.loc["pid", "paper_deviation_mean"] == pytest.approx(0.0187)
     assert s1.loc["smc_ndo_nno_text", "paper_row"] == s1.loc["smc_ndo_nno", "paper_row"] == "SMC-NDO-NN"
@@ -73,61 +128,84 @@ def test_table4_rows_columns_and_paper_numbers(smoke_report):
     assert s2["paper_deviation_mean"].isna().all()  # the paper's Table 4 is compared with scenario 1 only
 
 
-def test_further_tables(smoke_report):
-    tables = smoke_report / "tables"
+def test_further_tables(mini_report):
+    tables = mini_report / "tables"
+    n = len(CONTROLLERS) * len(SCENARIOS)
     for name, metrics in (("chattering.csv", ["chattering", "hf_fraction", "mean_voltage"]),
                           ("energy.csv", ["energy_u2", "electrical_energy"]),
                           ("saturation.csv", ["saturation_fraction", "saturated_time"]),
                           ("estimation.csv", ["d_est_mae", "d_est_mae_ndo", "s_mae"])):
         frame = _read(tables / name)
-        assert len(frame) == 10, name
+        assert len(frame) == n, name
         _finite(frame, [f"{m}_mean" for m in metrics] + [f"{m}_sd" for m in metrics])
-    ch = _read(tables / "chattering.csv")
-    _finite(ch, ["u_right_p01", "u_right_p99"])
+    _finite(_read(tables / "chattering.csv"), ["u_right_p01", "u_right_p99"])
     zones = _read(tables / "deviation_by_zone.csv")
     assert set(zones["zone"]) == {"flat", "very_rough", "slightly_rough"}
-    assert len(zones) == 10 * 3
+    assert len(zones) == n * 3
     _finite(zones, ["deviation_mae_mean", "e_x_mae_mean", "chattering_mean"])
     phases = _read(tables / "deviation_by_phase.csv")
     assert set(phases.loc[phases["scenario"] == "paper_2", "phase"]) == {"terrain", "uncertainty", "both"}
-    assert len(phases) == 5 * 1 + 5 * 3
+    assert len(phases) == len(CONTROLLERS) * (1 + 3)
     t3 = _read(tables / "table3_parameters.csv").set_index("controller")
-    assert set(t3.index) == SMOKE_CONTROLLERS
-    assert t3.loc["pid", "param_K_p"] == 5.0
-    assert (t3.loc["smc_ndo_nno", "param_gamma"], t3.loc["smc_ndo_nno", "param_sigma"]) == (50.0, 2.0)
-    assert (t3.loc["smc_ndo_nno_text", "param_gamma"], t3.loc["smc_ndo_nno_text", "param_sigma"]) == (2.0, 50.0)
+    assert set(t3.index) == set(CONTROLLERS)
+    assert t3.loc["pid", "param_K_p"] == pytest.approx(5.0)
+    assert t3.loc["smc_ndo_nno", ["param_gamma", "param_sigma"]].tolist() == pytest.approx([50.0, 2.0])
+    assert t3.loc["smc_ndo_nno_text", ["param_gamma", "param_sigma"]].tolist() == pytest.approx([2.0, 50.0])
 
 
-def test_verdicts_table(smoke_report):
-    v = _read(smoke_report / "tables" / "verdicts.csv")
+def test_nn_share_table(mini_report):
+    share = _read(mini_report / "tables" / "nn_share.csv")
+    # both readings of the NN, in both scenarios; controllers without an NN have no row
+    assert set(zip(share["controller"], share["scenario"])) == {(c, s) for c in NNO for s in SCENARIOS}
+    _finite(share, ["share_of_estimate", "share_of_u", "mean_abs_d_nn", "mean_abs_d_ndo"])
+    assert ((share["share_of_estimate"] > 0) & (share["share_of_estimate"] < 1)).all()
+    assert ((share["share_of_u"] > 0) & (share["share_of_u"] < 1)).all()
+    section = _section(_md(mini_report), "The NN's share of the estimate")
+    assert "NN share of the estimate" in section and "Table 3 / eq. (25)" not in section  # a table, not a dump
+
+
+NNO = ("smc_ndo_nno", "smc_ndo_nno_text")
+
+
+def test_verdicts_table(mini_report):
+    v = _read(mini_report / "tables" / "verdicts.csv")
     assert set(v["claim"]) == {"ranking", "vs_smc_ndo", "vs_smc", "chattering", "estimation"}
-    assert set(v["scenario"]) == SCENARIOS
-    _finite(v, ["mean_a", "mean_b", "diff_ci_low", "diff_ci_high", "reduction", "p_value"])
-    assert (v["n_pairs"] == 2).all()
-    # two seeds cannot make any claim hold or fail: every verdict says so
-    assert all(str(x).startswith("inconclusive") for x in v["verdict"])
-    md = (smoke_report / "report.md").read_text(encoding="utf-8")
-    section = md.split("## Verdicts on the paper's claims", 1)[1].split("\n## ", 1)[0]
+    assert set(v["scenario"]) == set(SCENARIOS)
+    _finite(v, ["mean_a", "mean_b", "diff_ci_low", "diff_ci_high", "diff_pct", "reduction", "margin", "p_value"])
+    # the percent difference is the difference relative to the reference's mean
+    assert np.allclose(v["diff_pct"], 100 * v["diff"] / v["mean_a"])
+    dev = v[v["metric"] == "deviation_mae"]
+    assert not dev.empty and np.allclose(dev["margin"], 1e-4)  # 0.1 mm on the deviation
+    chat = v[v["metric"] == "chattering"]
+    assert np.allclose(chat["margin"], 0.05 * chat["mean_a"].abs())  # 5 % of the reference elsewhere
+    assert (v["n_pairs"] == N_RUNS).all()
+    # two seeds cannot make any claim hold, fail or tie: every verdict says so
+    assert (v["verdict_category"] == "inconclusive").all()
+    assert all("only 2 paired seeds" in x for x in v["verdict"])
+    section = _section(_md(mini_report), "Verdicts on the paper's claims")
     for title in ("Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO", "about 40 % lower", "over 60 % lower",
                   "near-complete elimination of chattering", "Disturbance-estimation MAE"):
         assert title in section
+    for rule in ("**holds**", "**tie**", "**does not hold**", "**inconclusive**", "Practical margin: ±0.1 mm"):
+        assert rule in section
+    assert "Claims not checked" not in section  # every claim is checkable on this sweep
 
 
-def test_verdicts_are_reproducible(smoke_sweep_dir):
+def test_verdicts_are_reproducible(mini_sweep):
     from ddmr_cli.report import data, verdicts
 
-    rows = [verdicts.rows(verdicts.evaluate(data.load(smoke_sweep_dir))) for _ in range(2)]
+    rows = [verdicts.rows(verdicts.evaluate(data.load(mini_sweep))) for _ in range(2)]
     assert rows[0] == rows[1]
 
 
-def test_figures_are_valid_pngs(smoke_report):
-    figures = sorted((smoke_report / "figures").glob("*.png"))
+FIGURES = ("fig03_terrain", "fig04_trajectory", "fig05_deviation", "fig06_pose_errors", "fig07_disturbance",
+           "nn_share", "fig08_voltage", "spectrum_u", "fig09_sliding", "deviation_spread")
+
+
+def test_figures_are_valid_pngs(mini_report):
+    figures = sorted((mini_report / "figures").glob("*.png"))
     names = {p.name for p in figures}
-    for scenario in SCENARIOS:
-        for stem in ("fig03_terrain", "fig04_trajectory", "fig05_deviation", "fig06_pose_errors",
-                     "fig07_disturbance", "fig08_voltage", "fig09_sliding", "deviation_spread"):
-            assert f"{scenario}_{stem}.png" in names
-    assert "paper_2_fig10_environment.png" in names and "paper_1_fig10_environment.png" not in names
+    assert names == {f"{s}_{stem}.png" for s in SCENARIOS for stem in FIGURES} | {"paper_2_fig10_environment.png"}
     import matplotlib.image
 
     for path in figures:
@@ -137,47 +215,81 @@ def test_figures_are_valid_pngs(smoke_report):
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 200, path.name
 
 
-def test_report_links_resolve(smoke_report):
-    md = (smoke_report / "report.md").read_text(encoding="utf-8")
-    links = re.findall(r"\]\(([^)\s]+)\)", md)
+def test_captions_state_paper_and_ours(mini_report):
+    md = _md(mini_report)
+    figures = _section(md, "Figures")
+    captions = re.findall(r"^\*\*(.+?)\.\*\* (.+)$", figures, flags=re.M)
+    assert len(captions) == len(list((mini_report / "figures").glob("*.png")))
+    for title, caption in captions:
+        assert "Paper —" in caption and "Ours" in caption, title
+    scenario_1 = figures.split("### paper_1", 1)[1].split("### paper_2", 1)[0]
+    sliding = next(c for t, c in re.findall(r"^\*\*(.+?)\.\*\* (.+)$", scenario_1, flags=re.M)
+                   if t.startswith("Sliding variable"))
+    assert "paper: near -15 and -25" in sliding
+    # our numbers are computed, not the paper's repeated: the SMC sigma we report is a number near 0
+    within = float(re.search(r"within ±([0-9.e+-]+) of 0", sliding).group(1))
+    assert within < 15
+    # the captions promise no phase lines that are not drawn
+    assert "dotted lines mark" not in figures and "phases (dotted)" not in figures
+    assert "shaded bands alternate the terrain zones" in figures
+    assert "shaded bands alternate the scenario's phases" in figures
+
+
+def test_report_links_resolve(mini_report):
+    md = _md(mini_report)
     images = re.findall(r"!\[[^\]]*\]\(([^)\s]+)\)", md)
-    assert len(images) == len(list((smoke_report / "figures").glob("*.png")))
-    assert any(link.startswith("tables/") for link in links)
-    for link in links:
-        assert (smoke_report / link).is_file(), link
+    assert len(images) == len(list((mini_report / "figures").glob("*.png")))
+    assert any(link.startswith("tables/") for link in re.findall(r"\]\(([^)\s]+)\)", md))
+    _links_resolve(mini_report, md)
 
 
-def test_report_states_configuration(smoke_report, smoke_sweep_dir):
-    md = (smoke_report / "report.md").read_text(encoding="utf-8")
-    sweep = smoke_report.parent
-    assert f"ddmr run -m +experiment=smoke hydra.sweep.dir={sweep}" in md
+def test_report_states_configuration(mini_report):
+    md = _md(mini_report)
+    sweep = mini_report.parent
+    assert (f"ddmr run -m controller=pid,smc,smc_ndo,smc_ndo_nno,smc_ndo_nno_text scenario=paper_1,paper_2 "
+            f"simulation.dt=0.002 run.n_runs={N_RUNS}") in md and f"hydra.sweep.dir={sweep}" in md
     assert f"ddmr report {sweep}" in md
-    for text in ("simulation.dt | 0.002", "run.n_runs | 2", "Table 3 / eq. (25) reading", "text reading",
-                 "compared against scenario 1", "None: every job of the sweep is complete"):
+    for text in ("simulation.dt | 0.002", f"run.n_runs | {N_RUNS}", "Table 3 / eq. (25) reading", "text reading",
+                 "compared against scenario 1", "None: every job of the sweep is complete", "Okabe"):
         assert text in md, text
 
 
-def test_partial_sweep(smoke_sweep_dir, tmp_path):
+def test_single_phase_table_dropped(mini_report):
+    """Scenario 1 has one phase: its per-phase table would repeat Table 4."""
+    section = _section(_md(mini_report), "Deviation per scenario phase")
+    assert "### paper_2" in section and "### paper_1" not in section
+    assert "`paper_1`: a single phase" in section
+
+
+def test_mean_sd_cells_have_no_spurious_precision(mini_report):
+    md = _md(mini_report)
+    cells = re.findall(r"\| ([^|]*±[^|]*) \|", md)
+    assert cells
+    for cell in cells:
+        assert not re.search(r"±\s*\d(\.\d+)?e-(1\d|[2-9]\d)", cell), cell  # no SD of 1e-10 and below
+
+
+# --- partial sweeps, failures, single runs --------------------------------------------------------------------
+def test_partial_sweep(mini_sweep, tmp_path):
     from ddmr_cli.report import build_report
 
     sweep = tmp_path / "partial"
-    shutil.copytree(smoke_sweep_dir, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
     (sweep / "controller=smc,scenario=paper_1" / "summary.json").unlink()   # killed mid-way
     shutil.rmtree(sweep / "controller=smc_ndo,scenario=paper_2")            # never started
     for job in ("controller=pid,scenario=paper_1", "controller=pid,scenario=paper_2"):
-        shutil.copy(smoke_sweep_dir / job / "series.npz", sweep / job / "series.npz")  # figures for some jobs
+        shutil.copy(mini_sweep / job / "series.npz", sweep / job / "series.npz")  # figures for some jobs
     out = build_report(sweep, tmp_path / "out")
     assert out == tmp_path / "out"
-    md = (out / "report.md").read_text(encoding="utf-8")
-    missing = md.split("## Missing or failed jobs", 1)[1].split("\n## ", 1)[0]
+    md = _md(out)
+    missing = _section(md, "Missing or failed jobs")
     assert "**The report is partial**" in missing
     assert "controller=smc,scenario=paper_1" in missing and "controller=smc_ndo,scenario=paper_2" in missing
     jobs = _read(out / "tables" / "jobs.csv").set_index("job")
     assert jobs.loc["controller=smc,scenario=paper_1", "status"] == "missing"
     assert jobs.loc["controller=smc_ndo,scenario=paper_2", "status"] == "missing"
     assert (jobs["status"] == "complete").sum() == 8
-    t4 = _read(out / "tables" / "table4.csv")
-    assert len(t4) == 8
+    assert len(_read(out / "tables" / "table4.csv")) == 8
     # verdicts needing a missing controller are skipped with a note, the others still computed
     assert "no complete smc job in paper_1" in md and "no complete smc_ndo job in paper_2" in md
     v = _read(out / "tables" / "verdicts.csv")
@@ -187,42 +299,41 @@ def test_partial_sweep(smoke_sweep_dir, tmp_path):
     assert sorted(p.name for p in (out / "figures").glob("*.png")) == ["paper_1_deviation_spread.png",
                                                                        "paper_2_deviation_spread.png"]
     assert "time-series figures skipped" in md
-    for link in re.findall(r"\]\(([^)\s]+)\)", md):
-        assert (out / link).is_file(), link
+    _links_resolve(out, md)
     assert not (sweep / "report").exists()  # --out elsewhere: nothing written into the sweep
 
 
-def test_failed_job_is_listed(smoke_sweep_dir, tmp_path):
-    import json
-
+def test_failed_job_is_listed(mini_sweep, tmp_path):
     from ddmr_cli.report import build_report
 
     sweep = tmp_path / "failed"
-    shutil.copytree(smoke_sweep_dir, sweep, ignore=shutil.ignore_patterns("report", "series.npz", "plots"))
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
     job = sweep / "controller=pid,scenario=paper_2"
     summary = json.loads((job / "summary.json").read_text())
-    (job / "summary.json").write_text(json.dumps({**summary, "status": "failed",
-                                                  "error": "SimulationError: boom"}))
-    md = (build_report(sweep) / "report.md").read_text(encoding="utf-8")
-    missing = md.split("## Missing or failed jobs", 1)[1].split("\n## ", 1)[0]
+    (job / "summary.json").write_text(json.dumps({**summary, "status": "failed", "error": "SimulationError: boom"}))
+    missing = _section(_md(build_report(sweep)), "Missing or failed jobs")
     assert "controller=pid,scenario=paper_2" in missing and "SimulationError: boom" in missing
 
 
-def test_single_run_dir(smoke_sweep_dir, tmp_path):
+def test_single_run_dir(mini_sweep, tmp_path):
     from ddmr_cli.report import build_report
 
-    run = tmp_path / "run"
-    shutil.copytree(smoke_sweep_dir / "controller=smc_ndo_nno,scenario=paper_2", run)
+    run = tmp_path / "run"  # without its series: the figures are the full report's business, this is the text's
+    shutil.copytree(mini_sweep / "controller=smc_ndo_nno,scenario=paper_2", run, ignore=shutil.ignore_patterns("*.npz"))
     out = build_report(run)
-    md = (out / "report.md").read_text(encoding="utf-8")
+    md = _md(out)
     assert "From the run dir" in md
     assert f"hydra.run.dir={run}" in md and "ddmr run -m" not in md
     t4 = _read(out / "tables" / "table4.csv")
     assert list(t4["controller"]) == ["smc_ndo_nno"] and list(t4["scenario"]) == ["paper_2"]
-    assert "skipped" in md  # verdicts need other controllers
-    for link in re.findall(r"\]\(([^)\s]+)\)", md):
-        assert (out / link).is_file(), link
-    assert (out / "figures" / "paper_2_fig05_deviation.png").is_file()
+    verdicts = _section(md, "Verdicts on the paper's claims")
+    # no verdict applies: the summary says so once, the claims are listed once with each reason once
+    assert "no claim could be checked with these jobs" in verdicts
+    assert verdicts.count("### Claims not checked") == 1
+    assert verdicts.count("no complete smc_ndo job in paper_2") == 1
+    assert "skipped" not in verdicts
+    _links_resolve(out, md)
+    assert [p.name for p in (out / "figures").glob("*.png")] == ["paper_2_deviation_spread.png"]
 
 
 def test_errors(tmp_path):
@@ -236,14 +347,178 @@ def test_errors(tmp_path):
         build_report(tmp_path / "empty")
 
 
-def test_cli(smoke_sweep_dir, tmp_path):
+# --- forward-compatible inputs: steady-state columns and bands -------------------------------------------------
+SS_METRICS = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae")
+
+
+def _add_steady_state(sweep: Path, factor: dict[str, float]) -> None:
+    """Constructed ``<metric>_ss`` columns: the whole-run value times a per-controller factor."""
+    import pandas as pd
+
+    for job in sweep.iterdir():
+        if not (job / "metrics.csv").is_file():
+            continue
+        controller = json.loads((job / "summary.json").read_text())["controller"]
+        frame = pd.read_csv(job / "metrics.csv")
+        for m in SS_METRICS:
+            frame[m + "_ss"] = frame[m] * factor.get(controller, 1.0)
+        frame.to_csv(job / "metrics.csv", index=False)
+
+
+def test_steady_state_columns_are_used(mini_sweep, tmp_path):
+    from ddmr_cli.report import build_report
+
+    sweep = tmp_path / "ss"
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
+    _add_steady_state(sweep, {"smc_ndo_nno": 0.25})
+    out = build_report(sweep)
+    t4 = _read(out / "tables" / "table4.csv").set_index(["scenario", "controller"])
+    assert np.allclose(t4["deviation_mean_ss"].loc[("paper_1", "smc_ndo_nno")],
+                       0.25 * t4["deviation_mean"].loc[("paper_1", "smc_ndo_nno")])
+    assert np.allclose(t4["e_x_mae_ss"].loc[("paper_1", "pid")], t4["e_x_mae"].loc[("paper_1", "pid")])
+    md = _md(out)
+    table4 = _section(md, "Table 4: tracking performance over seeds")
+    assert "Steady-state columns are present" in table4
+    header = next(line for line in table4.splitlines() if line.startswith("| Controller"))
+    assert "Whole run: Deviation mean (m)" in header and "Steady state: Deviation mean (m)" in header
+    assert header.index("Whole run: e_θ") < header.index("Steady state: Deviation mean")  # side by side, in order
+    v = _read(out / "tables" / "verdicts.csv")
+    dev = v[v["claim"].isin(["ranking", "vs_smc_ndo", "vs_smc"])]
+    assert set(dev["metric"]) == {"deviation_mae_ss"}
+    row = dev[(dev["claim"] == "vs_smc_ndo") & (dev["scenario"] == "paper_1") & (dev["candidate"] == "smc_ndo_nno")]
+    assert row["reduction"].iloc[0] > 0.5  # the constructed steady-state numbers, not the whole-run ones
+    assert "use the steady-state deviation" in _section(md, "Verdicts on the paper's claims")
+
+
+def test_without_steady_state_columns_whole_run_is_used(mini_report):
+    v = _read(mini_report / "tables" / "verdicts.csv")
+    assert set(v.loc[v["claim"] == "ranking", "metric"]) == {"deviation_mae"}
+    assert "whole-run deviation MAE" in _section(_md(mini_report), "Verdicts on the paper's claims")
+    assert "Steady state:" not in _md(mini_report)
+
+
+def _write_bands(job: Path, seed_series: dict, spread: float = 1.0) -> None:
+    """A constructed bands.npz: mean = the seed's series, band = mean ± spread x |mean| (so it is visible)."""
+    arrays = {"t": seed_series["t"]}
+    for c, y in seed_series.items():
+        if c == "t":
+            continue
+        arrays[f"{c}/mean"] = y
+        arrays[f"{c}/p05"] = y - spread * np.abs(y)
+        arrays[f"{c}/p95"] = y + spread * np.abs(y)
+    np.savez(job / "bands.npz", **arrays)
+
+
+def test_bands_are_drawn_when_present(mini_sweep, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from ddmr_cli.cli.io import read_series
+    from ddmr_cli.report import data as D
+    from ddmr_cli.report.figures import ScenarioFigures
+    from ddmr_cli.report.plotting import StyleBook
+
+    sweep = tmp_path / "bands"
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report"))
+    with_bands = sweep / "controller=smc,scenario=paper_1"
+    _write_bands(with_bands, read_series(with_bands / "series.npz")[0])
+    data = D.load(sweep)
+    sf = ScenarioFigures(data, "paper_1", tmp_path / "figs", StyleBook(CONTROLLERS))
+    smc, pid = (data.job("paper_1", k) for k in ("smc", "pid"))
+    assert smc.key in sf.bands and pid.key not in sf.bands
+    fig, (a1, a2) = plt.subplots(2)
+    sf._trace(a1, smc, "e_y")
+    sf._trace(a2, pid, "e_y")
+    assert sum(isinstance(c, PolyCollection) for c in a1.collections) == 1   # the band
+    assert len(a1.lines) == 2                                                # mean + seed line
+    assert not a2.collections and len(a2.lines) == 1                         # no bands: the seed line alone
+    plt.close(fig)
+    # and the figures say so in their captions
+    sf.fig_pose_errors(plt)
+    assert "5–95 % band" in sf.figures[-1].caption and "seed line only" in sf.figures[-1].caption
+
+
+def test_bands_fall_back_when_absent_or_malformed(mini_sweep, tmp_path):
+    from ddmr_cli.report import data as D
+
+    sweep = tmp_path / "bad_bands"
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report"))
+    job_dir = sweep / "controller=smc,scenario=paper_1"
+    np.savez(job_dir / "bands.npz", x=np.zeros(3))  # no time axis
+    data = D.load(sweep)
+    assert data.bands(data.job("paper_1", "smc")) is None
+    assert data.bands(data.job("paper_1", "pid")) is None  # no file at all
+    t = np.linspace(0, 1, 5)
+    np.savez(job_dir / "bands.npz", t=t, **{"u_right/mean": t, "u_right/p05": t - 1, "u_right/p95": t + 1,
+                                           "s_right/mean": t[:3]})  # a channel of the wrong length is left out
+    bands = D.read_bands(job_dir / "bands.npz")
+    assert "u_right" in bands and "s_right" not in bands
+    assert np.allclose(bands.p95["u_right"] - bands.p05["u_right"], 2.0)
+
+
+def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path):
+    """The forked path draws what the in-process path draws, and a failing figure fails the report."""
+    from ddmr_cli.report import data as D
+    from ddmr_cli.report import figures as F
+    from ddmr_cli.report.plotting import StyleBook
+
+    data = D.load(mini_sweep)
+    styles = StyleBook(CONTROLLERS)
+    tasks = [("paper_1", "fig_spread"), ("paper_2", "fig_spread")]
+    forked = F._run_forked(data, tmp_path / "forked", styles, tasks, 2)
+    serial = [F.make_one(data, tmp_path / "serial", styles, t) for t in tasks]
+    assert [[(f.path.name, f.caption) for f in figs] for figs, _ in forked] == \
+           [[(f.path.name, f.caption) for f in figs] for figs, _ in serial]
+    assert all((tmp_path / "forked" / f"{s}_deviation_spread.png").is_file() for s in SCENARIOS)
+    with pytest.raises(RuntimeError, match="fig_nonexistent of paper_1 failed"):
+        F._run_forked(data, tmp_path / "bad", styles, [("paper_1", "fig_nonexistent")], 1)
+
+
+def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
+    """The paper's line: y against x; a circle: the lateral error against the distance travelled."""
+    from ddmr_cli.report import data as D
+    from ddmr_cli.report.figures import ScenarioFigures
+    from ddmr_cli.report.plotting import StyleBook, pyplot
+
+    circle = tmp_path / "circle"
+    write_job(circle, "smc_ndo", "paper_1", extra=("trajectory=circle",))
+    captions = {}
+    for name, path in (("line", mini_sweep), ("circle", circle)):
+        sf = ScenarioFigures(D.load(path), "paper_1", tmp_path / name, StyleBook(CONTROLLERS))
+        sf.fig_trajectory(pyplot())
+        captions[name] = sf.figures[-1].caption
+        assert sf.figures[-1].path.is_file()
+    assert "bottom: lateral position in mm" in captions["line"]
+    assert "bottom: lateral error in mm" in captions["circle"]
+
+
+# --- the CLI -------------------------------------------------------------------------------------------------
+def test_cli_margin_flag(mini_sweep, tmp_path, capsys):
+    from ddmr_cli.cli.main import main
+
+    run = tmp_path / "run"
+    shutil.copytree(mini_sweep / "controller=smc_ndo,scenario=paper_1", run, ignore=shutil.ignore_patterns("*.npz"))
+    assert main(["report", str(run), "--out", str(tmp_path / "o"), "--margin", "0.05mm"]) == 0
+    md = _md(tmp_path / "o")
+    assert "Practical margin: ±0.05 mm" in md and "--margin 0.05mm" in md
+    assert main(["report", str(run), "--out", str(tmp_path / "p"), "--margin", "lots"]) == 2
+    assert "margin" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_cli(mini_sweep, tmp_path):
+    from conftest import run_ddmr
+
     run = tmp_path / "run"  # one job is enough for the CLI's plumbing (and fast)
-    shutil.copytree(smoke_sweep_dir / "controller=smc_ndo,scenario=paper_1", run)
+    shutil.copytree(mini_sweep / "controller=smc_ndo,scenario=paper_1", run)
     out = tmp_path / "cli_out"
-    proc = run_ddmr(["report", str(run), "--out", str(out)], cwd=tmp_path)
+    proc = run_ddmr(["report", str(run), "--out", str(out), "--margin", "5%"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert str(out) in proc.stdout
-    assert (out / "report.md").is_file()
+    assert "Practical margin: ±5 % of the reference controller's mean for every metric" in _md(out)
     proc = run_ddmr(["report", str(tmp_path / "missing")], cwd=tmp_path)
     assert proc.returncode == 2
     assert "no such directory" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1

@@ -34,7 +34,7 @@ commands:
                             ddmr run -m +experiment=table4 launcher=slurm cluster.partition=compute
                           add report=true to write the report when the run or sweep ends
   explain KEY [OVERRIDES] a config key's meaning, unit, value, valid range and docs/model.md section
-  report [PATH] [--out DIR]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
+  report [PATH] [--out DIR] [--margin 0.1mm]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
                           (default PATH: the latest sweep under ./outputs)
   bench [--quick]         print engine and end-to-end performance figures for this machine
   --version               print the version
@@ -407,11 +407,17 @@ def cmd_report(argv: list[str]) -> int:
                         help="a sweep dir (ddmr run -m ...) or a single run dir (default: the latest sweep under "
                              "./outputs)")
     parser.add_argument("--out", default=None, help="output dir (default: PATH/report)")
-    parser.add_argument("--margin", type=float, default=None,
-                        help="equivalence margin of the verdicts (when this version's report takes one)")
+    parser.add_argument("--margin", default=None,
+                        help="practical margin of the verdicts: a length (0.1mm, the default; 1e-4 in metres) for "
+                             "the metrics in metres, 5%% of the reference's mean for the others; or a percentage "
+                             "(5%%) for every metric. A paired difference whose 95%% CI lies inside it is a tie")
     args = parser.parse_args(argv)
-    if args.margin is not None and not _report_takes_margin():
-        return _fail(f"margin={args.margin}: this version of `ddmr report` takes no equivalence margin")
+    from ddmr_cli.report.stats import Margin
+
+    try:
+        Margin.parse(args.margin)
+    except ValueError as exc:
+        return _fail(f"--margin={args.margin}: {exc}")
     path = args.path
     if path is None:
         latest = _latest_sweep(Path("outputs"))

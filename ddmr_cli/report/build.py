@@ -10,10 +10,13 @@ import numpy as np
 
 from ddmr_cli.cli import io
 from ddmr_cli.engine.metrics import METRICS
+from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
 from ddmr_cli.report import verdicts as V
 from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
 from ddmr_cli.report.figures import common_seed, make_figures
+from ddmr_cli.report.plotting import OKABE_ITO, StyleBook, label_of
+from ddmr_cli.report.stats import Margin
 
 #: Settings shown in the configuration section (dotted config keys).
 KEY_SETTINGS = ("simulation.dt", "simulation.duration", "simulation.integrator", "simulation.initial_pose",
@@ -46,8 +49,9 @@ def nn_reading(params: dict) -> str | None:
 
 
 class Report:
-    def __init__(self, data: ReportData, out: Path):
-        self.data, self.out = data, out
+    def __init__(self, data: ReportData, out: Path, margin: Margin | None = None):
+        self.data, self.out, self.margin = data, out, margin or Margin()
+        self.styles = StyleBook(j.controller for j in data.jobs)
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
         self.csvs: list[tuple[str, Path]] = []
@@ -82,6 +86,10 @@ class Report:
         report_cmd = f"ddmr report {shlex.quote(str(d.path))}"
         if self.out != d.path / "report":
             report_cmd += f" --out {shlex.quote(str(self.out))}"
+        if self.margin != Margin():
+            m = self.margin
+            spec = f"{1000 * m.metres:g}mm" if m.metres is not None else f"{100 * m.relative:g}%"
+            report_cmd += f" --margin {shlex.quote(spec)}"
         self.add("## Configuration", "", "Regenerate the results (jobs already complete with the same config hash are "
                  "skipped) and this report:", "", "```sh", d.run_command(), report_cmd, "```", "")
         flat = {j.dir.name: flatten(j.config) for j in d.jobs}
@@ -97,6 +105,8 @@ class Report:
         readings = list(dict.fromkeys(f"{j.controller}: {r}" for j in d.jobs
                                       if (r := nn_reading(j.summary.get("parameters") or {}))))
         rows.append(["NN-parameter reading (MODEL.md 6)", "; ".join(readings) if readings else "no NN observer"])
+        steady = {k: _fmt_value(v) for f in flat.values() for k, v in f.items() if "steady" in k.lower()}
+        rows += [[k, v] for k, v in sorted(steady.items())]
         self.add(T.md_table(["Setting", "Value"], rows), "")
         all_keys = set().union(*flat.values()) if flat else set()
         differ = sorted(k for k in all_keys if not k.startswith(("controller.", "scenario."))
@@ -180,6 +190,10 @@ class Report:
                  f"ours/paper. Names map pid → PID, smc → SMC, smc_ndo → SMC+NDO, smc_ndo_nno → SMC-NDO-NN; "
                  f"**smc_ndo_nno_text (the other reading of the NN parameters, MODEL.md 6) is compared to the same "
                  f"SMC-NDO-NN row**. The paper prints e_θ in m; it is rad.", "")
+        if T.has_ss(t4):
+            self.add("**Steady-state columns are present** (`<metric>_ss` in the jobs' metrics.csv, the engine's "
+                     "steady-state window): each table shows the whole-run block (compared with the paper) and the "
+                     "steady-state block side by side; the deviation verdicts use the steady-state deviation.", "")
         if PAPER_SCENARIO not in d.scenarios:
             self.add(f"(No `{PAPER_SCENARIO}` job in this sweep: no comparison with the paper's numbers.)", "")
         for scenario in d.scenarios:
@@ -194,9 +208,9 @@ class Report:
     def verdicts(self) -> None:
         import pandas as pd
 
-        results = V.evaluate(self.data)
+        results = V.evaluate(self.data, self.margin)
         link = self.csv("verdicts.csv", pd.DataFrame(V.rows(results)), "paired comparisons behind the verdicts")
-        self.add(V.markdown(self.data, results), f"Every paired comparison: {link}.", "")
+        self.add(V.markdown(self.data, results, self.margin), f"Every paired comparison: {link}.", "")
 
     def voltage_ranges(self, stats):
         """1st–99th percentile of u_R for t >= 1 s in the figures' seed, per scenario and controller."""
@@ -271,26 +285,77 @@ class Report:
                 est, scenario, [("d_est_mae", "d estimation MAE"), ("d_est_mae_ndo", "NDO part alone"),
                                 ("s_mae", "s MAE (rad/s)")], extra if scenario == PAPER_SCENARIO else ()), "")
 
+    def nn_share(self) -> None:
+        """The NN's share of the disturbance estimate and of the voltage, per NNO job, from its kept series."""
+        import pandas as pd
+
+        d = self.data
+        rows = []
+        for scenario in d.scenarios:
+            for key in d.keys(scenario):
+                job = d.job(scenario, key)
+                runs = list(d.all_series(job).values())
+                if not runs or not any(S.has_nn(r) for r in runs):
+                    continue
+                share = S.nn_share(runs, S.nominal_input_inverse(job.config.get("robot")))
+                rows.append({"scenario": scenario, "controller": job.controller, "key": key, "label": job.label,
+                             "reading": nn_reading(job.summary.get("parameters") or {}) or "",
+                             "series_seeds": len(runs), **share})
+        if not rows:
+            return
+        frame = pd.DataFrame(rows)
+        link = self.csv("nn_share.csv", frame, "the NN's share of the disturbance estimate and of u")
+        self.add("## The NN's share of the estimate", "",
+                 f"For each job with an NN observer, over its kept time series (both wheels): mean |d̂_NDO|, mean "
+                 f"|d̂_NN|, the NN's share of the estimate mean |d̂_NN| / mean |d̂_NDO + d̂_NN|, and the voltage the NN "
+                 f"term adds through eq. (17), mean |g⁻¹ d̂_NN| (nominal g), against the mean |u| applied ({link}). "
+                 f"Figure: *The NN's share of the disturbance estimate* below.", "")
+        self.add(T.md_table(
+            ["Scenario", "Controller", "Seeds", "mean |d̂_NDO| (rad/s²)", "mean |d̂_NN| (rad/s²)",
+             "NN share of the estimate", "mean |g⁻¹ d̂_NN| (V)", "NN share of |u|"],
+            [[r["scenario"], r["label"], r["series_seeds"], T.fmt(r["mean_abs_d_ndo"], 3),
+              T.fmt(r["mean_abs_d_nn"], 3), T.pct(r["share_of_estimate"]), T.fmt(r["mean_abs_u_nn"], 3),
+              T.pct(r["share_of_u"])] for r in rows]), "")
+
     def segments(self) -> None:
         d = self.data
         for kind, title, what in (("zone", "Deviation per terrain zone", "zones along the distance travelled"),
                                   ("phase", "Deviation per scenario phase", "phases of the scenario in time")):
             frame = T.segment_frame(d, kind)
             link = self.csv(f"deviation_by_{kind}.csv", frame, title.lower())
-            self.add(f"## {title}", "", f"Deviation MAE (m), mean ± SD over seeds, within each of the {what} "
-                     f"({link}; also e_x, e_y, e_θ, chattering, estimation MAE and saturation there).", "")
             if frame.empty:
-                self.add("(no segment rows)", "")
+                self.add(f"## {title}", "", f"(no segment rows; {link})", "")
                 continue
+            shown, single = [], []
             for scenario in d.scenarios:
-                if (frame["scenario"] == scenario).any():
-                    self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
+                part = frame[frame["scenario"] == scenario]
+                if part.empty:
+                    continue
+                (shown if part[kind].nunique() > 1 else single).append(scenario)
+            self.add(f"## {title}", "")
+            if shown:
+                self.add(f"Deviation MAE (m), mean ± SD over seeds, within each of the {what} ({link}; also e_x, "
+                         f"e_y, e_θ, chattering, estimation MAE and saturation there).", "")
+            if single:
+                self.add(f"{', '.join(f'`{x}`' for x in single)}: a single {kind} — its table would repeat Table 4 "
+                         f"(the rows are in {link}).", "")
+            for scenario in shown:
+                self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
 
     def figures(self) -> None:
-        figures, notes = make_figures(self.data, self.figures_dir)
-        self.add("## Figures", "", "One colour per controller in every figure (PID red, SMC blue, SMC-NDO cyan, "
-                 "SMC-NDO-NNO black, text reading purple); the reference and the true disturbance are grey dashed. "
-                 "Each scenario's time-series figures use the first kept seed common to all its jobs.", "")
+        figures, notes = make_figures(self.data, self.figures_dir, self.styles)
+        present = list(dict.fromkeys(j.controller for j in self.data.jobs))
+        names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
+        legend = "; ".join(f"{label_of(c)} {names.get(self.styles[c].color, self.styles[c].color)} "
+                           f"{self.styles[c].dash}" + (f" with {self.styles[c].marker} markers"
+                                                        if self.styles[c].marker else "") for c in present)
+        self.add("## Figures", "",
+                 f"Colour-blind-safe colours (Okabe–Ito) and a distinct line style per controller, the same in every "
+                 f"figure: {legend}. The reference and the true disturbance are grey dashed. Overlapping lines are "
+                 f"drawn widest-spread first, or split into one panel per controller (same scale). Each scenario's "
+                 f"time-series figures use the first kept seed common to all its jobs; where the jobs wrote "
+                 f"bands.npz, the mean over all seeds and the 5–95 % band are drawn with that seed. Every caption "
+                 f"ends with what the paper reports for the figure and what we see.", "")
         for scenario, figs in figures.items():
             self.add(f"### {scenario}", "")
             for f in figs:
@@ -299,7 +364,6 @@ class Report:
         for note in notes:
             self.add(f"- Note: {note}")
         self.add("")
-        self.figure_list = [f.path for figs in figures.values() for f in figs]
 
     def files(self) -> None:
         self.add("## Tables (CSV)", "")
@@ -317,6 +381,7 @@ class Report:
         self.verdicts()
         self.effort(stats)
         self.estimation(stats)
+        self.nn_share()
         self.segments()
         self.figures()
         self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
@@ -325,10 +390,11 @@ class Report:
         return self.out
 
 
-def build(path, out=None) -> Path:
+def build(path, out=None, margin=None) -> Path:
+    margin = Margin.parse(margin)
     data = load(path)
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return Report(data, out_dir).build()
+    return Report(data, out_dir, margin).build()
 
 
 __all__ = ["build", "Report", "Job"]

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 from ddmr_cli.cli import io
 from ddmr_cli.errors import DDMRError
-from ddmr_cli.report.run_plots import label_of
+from ddmr_cli.report.plotting import label_of
 
 if TYPE_CHECKING:
+    import numpy as np
     import pandas as pd
 
 #: Controllers in the paper's order (then any other, alphabetically).
@@ -109,6 +110,7 @@ class ReportData:
     multirun: dict | None = None
     plan: list[dict] | None = None
     _series: dict = field(default_factory=dict, repr=False)
+    _bands: dict = field(default_factory=dict, repr=False)
 
     def series(self, job: Job, seed: int) -> dict:
         """One kept seed's time series of a job (read once)."""
@@ -116,13 +118,24 @@ class ReportData:
             self._series[job.dir] = io.read_series(job.dir / io.SERIES)
         return self._series[job.dir][seed]
 
+    def all_series(self, job: Job) -> dict[int, dict]:
+        """Every kept seed's time series of a job (empty when it kept none)."""
+        if not (job.dir / io.SERIES).is_file():
+            return {}
+        if job.dir not in self._series:
+            self._series[job.dir] = io.read_series(job.dir / io.SERIES)
+        return self._series[job.dir]
+
+    def bands(self, job: Job) -> Bands | None:
+        """The job's across-seed bands (``bands.npz``) when it wrote them, else None."""
+        if job.dir not in self._bands:
+            self._bands[job.dir] = read_bands(job.dir / BANDS)
+        return self._bands[job.dir]
+
     @property
     def scenarios(self) -> list[str]:
         names = sorted({j.scenario for j in self.jobs})
         return ([PAPER_SCENARIO] if PAPER_SCENARIO in names else []) + [n for n in names if n != PAPER_SCENARIO]
-
-    def jobs_of(self, scenario: str) -> list[Job]:
-        return [j for j in self.jobs if j.scenario == scenario]
 
     def keys(self, scenario: str | None = None) -> list[str]:
         """Controller keys in the paper's order."""
@@ -165,6 +178,45 @@ class ReportData:
                         values[key].append(value)
             overrides = [f"{k}={','.join(v)}" for k, v in values.items()]
         return " ".join(["ddmr run -m", *map(shlex.quote, overrides), f"hydra.sweep.dir={where}"])
+
+
+#: Optional per-job file: the 5-95 % band and the mean over all seeds of each channel at each time step.
+BANDS = "bands.npz"
+
+
+@dataclass
+class Bands:
+    """``t`` and, per channel, the mean and the 5th and 95th percentiles over the seeds at each step."""
+
+    t: "np.ndarray"
+    mean: dict
+    p05: dict
+    p95: dict
+
+    def __contains__(self, channel: str) -> bool:
+        return channel in self.mean and channel in self.p05 and channel in self.p95
+
+
+def read_bands(path: Path) -> Bands | None:
+    """``bands.npz`` (keys ``t`` and ``<channel>/mean``, ``<channel>/p05``, ``<channel>/p95``), or None when the job
+    has none or it is unreadable."""
+    import numpy as np
+
+    if not Path(path).is_file():
+        return None
+    try:
+        with np.load(path) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError):
+        return None
+    if "t" not in arrays:
+        return None
+    out = Bands(arrays["t"], {}, {}, {})
+    for key, arr in arrays.items():
+        channel, _, stat = key.rpartition("/")
+        if channel and stat in ("mean", "p05", "p95") and arr.shape == arrays["t"].shape:
+            getattr(out, stat)[channel] = arr
+    return out
 
 
 def _read_yaml(path: Path) -> dict:

@@ -1,28 +1,39 @@
-"""Figures mirroring the paper's (Figs. 3-14), one PNG each, per scenario, from the jobs' kept time series.
+"""Figures mirroring the paper's (Figs. 3-14) plus the NN's share and the voltage spectra, one PNG each, per
+scenario, from the jobs' kept time series (and their across-seed bands when the jobs wrote ``bands.npz``).
 
-Each figure uses one seed: the first kept seed common to every job of the scenario, so every controller
-faces the same terrain. Long lines are thinned to at most :data:`MAX_POINTS` points by keeping each bin's
-minimum and maximum (the envelope of a chattering signal survives); zoom panels are drawn at full resolution.
+Each figure uses one seed: the first kept seed common to every job of the scenario, so every controller faces
+the same terrain. With bands, a time-series figure shows per controller the mean over all seeds (line), the
+5-95 % band (shaded) and that seed (thin line). Long lines are thinned to at most
+:data:`~ddmr_cli.report.plotting.MAX_POINTS` points keeping each bin's minimum and maximum; zooms are drawn at full
+resolution. Lines that would overlap are drawn widest-spread first, or split into one panel per controller.
+
+Every caption says in one sentence what the paper reports for the figure and what we see, the latter computed
+from the data shown.
 """
 
 from __future__ import annotations
 
 import math
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ddmr_cli.cli import io
-from ddmr_cli.report.run_plots import color_of, pyplot
-from ddmr_cli.report.data import Job, ReportData
+from ddmr_cli.report import signals as S
+from ddmr_cli.report.data import Job, ReportData, flatten, paper_numbers
+from ddmr_cli.report.tables import fmt
+from ddmr_cli.report.plotting import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, pyplot, save,
+                                      thin)
 
-MAX_POINTS = 5000
-DPI = 110
 ZOOM_WIDTH = 0.3  # s
-LINESTYLES = ("-", "--", ":", "-.")
-REFERENCE_STYLE = {"color": "0.55", "ls": "--", "lw": 1.4}   # reference path / true disturbance: grey dashed
 SMC_FAMILY_KEYS = ("lambda",)  # a controller with a sliding surface reports lambda among its parameters
+BAND_ALPHA = 0.2
+#: The pose errors converge from the offset start pose (0.05 m, 0.05 rad) in about 2 s: their y ranges fit later.
+POSE_T_MIN = 2.0
+#: Colours of the two parts of the NNO's estimate (not controllers): NDO part and NN part.
+PART_COLORS = {"ndo": OKABE_ITO["orange"], "nn": OKABE_ITO["sky_blue"]}
 
 
 @dataclass
@@ -32,47 +43,46 @@ class Figure:
     caption: str
 
 
-def thin(y: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
-    """Indices keeping each bin's min and max, at most about ``max_points`` of them."""
-    n = len(y)
-    if n <= max_points:
-        return np.arange(n)
-    k = int(math.ceil(n / (max_points // 2)))
-    m = n // k * k
-    bins = np.nan_to_num(np.asarray(y[:m], float), nan=0.0).reshape(-1, k)
-    base = np.arange(0, m, k)
-    idx = np.concatenate([base + bins.argmin(axis=1), base + bins.argmax(axis=1), np.arange(m, n), [0, n - 1]])
-    return np.unique(idx)
+def _legend(ax, order: list[str] | None = None, **kw) -> None:
+    """Legend outside the axes, on the right (the curves and the zone labels stay visible); entries in
+    ``order`` (labels) come first, in that order, whatever order the lines were drawn in."""
+    handles, labels = ax.get_legend_handles_labels()
+    if order:
+        rank = {label: i for i, label in enumerate(order)}
+        pairs = sorted(zip(handles, labels), key=lambda hl: rank.get(hl[1], len(rank)))
+        handles, labels = [h for h, _ in pairs], [l for _, l in pairs]
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, **kw)
 
 
-def _legend(ax) -> None:
-    """Legend outside the axes, on the right (the curves and the zone labels stay visible)."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+def _mm(x: float) -> str:
+    return "–" if not math.isfinite(x) else f"{1000 * x:.3g} mm"
 
 
-def _line(ax, x, y, job: Job | None = None, label: str | None = None, full: bool = False, **kw):
-    idx = np.arange(len(y)) if full else thin(y)
-    if job is not None:
-        kw.setdefault("color", color_of(job.controller))
-        kw.setdefault("ls", LINESTYLES[job.variant % len(LINESTYLES)])
-        kw.setdefault("lw", 1.6 if job.controller == "smc_ndo_nno" else 1.0)
-        kw.setdefault("zorder", 2.0 if job.controller == "smc_ndo_nno" else 2.5)  # thick black line beneath
-        label = label or job.label
-    return ax.plot(np.asarray(x)[idx], np.asarray(y)[idx], label=label, **kw)
+def _num(x: float, digits: int = 3) -> str:
+    return fmt(x, digits)
+
+
+def _listing(items: list[tuple[str, str]]) -> str:
+    return ", ".join(f"{label} {value}" for label, value in items)
 
 
 class ScenarioFigures:
     """The figures of one scenario."""
 
-    def __init__(self, data: ReportData, scenario: str, out_dir: Path):
-        self.data, self.scenario, self.out_dir = data, scenario, Path(out_dir)
+    def __init__(self, data: ReportData, scenario: str, out_dir: Path, styles: StyleBook):
+        self.data, self.scenario, self.out_dir, self.styles = data, scenario, Path(out_dir), styles
         self.jobs = [data.job(scenario, k) for k in data.keys(scenario)]
         self.seed = common_seed(self.jobs)
         self.series: dict[str, dict[str, np.ndarray]] = {}
+        self.bands: dict[str, object] = {}
         if self.seed is not None:
             for job in self.jobs:
-                self.series[job.key] = data.series(job, self.seed)
+                s = self.series[job.key] = data.series(job, self.seed)
+                b = data.bands(job)
+                if b is not None and len(b.t) == len(s["t"]) and np.allclose(b.t, s["t"]):
+                    self.bands[job.key] = b
         self.ref = self._reference_job()
+        self.paper = paper_numbers()
         self.figures: list[Figure] = []
         self.notes: list[str] = []
 
@@ -88,6 +98,46 @@ class ScenarioFigures:
 
     def _s(self, job: Job) -> dict[str, np.ndarray]:
         return self.series[job.key]
+
+    def style(self, job: Job) -> dict:
+        return self.styles[job.controller].kwargs(job.variant)
+
+    def paper_says(self, figure: str) -> str:
+        text = (self.paper.get("figures", {}).get(figure) or {}).get(self.scenario)
+        return f"Paper — {text}." if text else "Paper — no counterpart for this scenario."
+
+    def _band_note(self, jobs: list[Job]) -> str:
+        with_bands = [j for j in jobs if j.key in self.bands]
+        if not with_bands:
+            return ""
+        runs = {int((j.summary.get("statistics") or {}).get("runs", 0)) for j in with_bands}
+        n = f"{max(runs)} seeds" if runs and max(runs) else "all seeds"
+        return (f" Lines: mean over {n}; shaded: 5–95 % band; thin line: seed {self.seed}"
+                + ("" if len(with_bands) == len(jobs) else " (jobs without bands.npz: seed line only)") + ".")
+
+    def _trace(self, ax, job: Job, channel: str, window=None, full: bool = False, label: str | None = None,
+               **override):
+        """One job's channel against time: with bands the 5-95 % band, the mean and the seed as a thin line,
+        else the seed's line in the job's style."""
+        s = self._s(job)
+        t = s["t"]
+        sel = np.arange(len(t)) if window is None else np.flatnonzero(window)
+        kw = {**self.style(job), **override}
+        label = label if label is not None else job.label
+        band = self.bands.get(job.key)
+        if band is not None and channel in band:
+            lo, hi, mean = band.p05[channel][sel], band.p95[channel][sel], band.mean[channel][sel]
+            idx = np.arange(len(sel)) if full else np.union1d(thin(lo), thin(hi))
+            ax.fill_between(t[sel][idx], lo[idx], hi[idx], color=kw["color"], alpha=BAND_ALPHA, lw=0,
+                            zorder=kw.get("zorder", 2) - 0.5)
+            y = s[channel][sel]
+            idx = np.arange(len(sel)) if full else thin(y)
+            ax.plot(t[sel][idx], y[idx], color=kw["color"], lw=0.5, alpha=0.7, zorder=kw.get("zorder", 2))
+            idx = np.arange(len(sel)) if full else thin(mean)
+            return ax.plot(t[sel][idx], mean[idx], label=label, **kw)
+        y = s[channel][sel]
+        idx = np.arange(len(sel)) if full else thin(y)
+        return ax.plot(t[sel][idx], y[idx], label=label, **kw)
 
     def _zone_names(self, job: Job) -> list[str]:
         seg = self.data.segments
@@ -118,11 +168,15 @@ class ScenarioFigures:
             return [(start, end, f"phase: {name}") for (start, name), end in zip(phases, ends)]
         return self._zone_spans("t")
 
+    def _spans_text(self) -> str:
+        return ("shaded bands alternate the scenario's phases (named at the top)" if self._phases()
+                else "shaded bands alternate the terrain zones (named at the top)")
+
     def _decorate_time(self, ax, labels: bool = False):
         """Shade every other phase (or terrain zone) on a time axis and name them at the top."""
         for i, (a, b, name) in enumerate(self._spans()):
             if i % 2:
-                ax.axvspan(a, b, color="0.93", zorder=0)
+                ax.axvspan(a, b, color="0.92", zorder=0)
             if labels:
                 ax.text((a + b) / 2, 0.98, name.replace("_", " "), transform=ax.get_xaxis_transform(),
                         ha="center", va="top", fontsize=8, color="0.35")
@@ -141,10 +195,19 @@ class ScenarioFigures:
         width = min(ZOOM_WIDTH, t[b - 1] - t[a]) or ZOOM_WIDTH
         return mid - width / 2, mid + width / 2
 
-    def _robust_ylim(self, ax, arrays, t, t_min: float = 1.0, margin: float = 0.15) -> bool:
-        """Fit the y range to t >= t_min; True when something before t_min is off-scale."""
+    def _arrays(self, job: Job, channel: str) -> list[np.ndarray]:
+        """The arrays a trace of ``channel`` draws (seed, and band edges when present), for y-limits."""
+        out = [self._s(job)[channel]]
+        band = self.bands.get(job.key)
+        if band is not None and channel in band:
+            out += [band.p05[channel], band.p95[channel]]
+        return out
+
+    def _robust_ylim(self, ax, arrays, t, t_min: float = 1.0, margin: float = 0.15, extra=()) -> bool:
+        """Fit the y range to t >= t_min (and the values in ``extra``); True when something before t_min is
+        off-scale."""
         later = t >= t_min
-        vals = np.concatenate([a[later] for a in arrays])
+        vals = np.concatenate([a[later] for a in arrays] + [np.asarray(extra, float)])
         vals = vals[np.isfinite(vals)]
         if vals.size == 0:
             return False
@@ -159,8 +222,20 @@ class ScenarioFigures:
     def _title(self, text: str) -> str:
         return f"{text} — {self.scenario}, seed {self.seed}"
 
-    def _save(self, fig, name: str, title: str, caption: str) -> None:
-        self.figures.append(Figure(save(fig, self.out_dir / f"{self.scenario}_{name}.png"), title, caption))
+    def _save(self, fig, name: str, title: str, caption: str, tight: bool = True) -> None:
+        self.figures.append(Figure(save(fig, self.out_dir / f"{self.scenario}_{name}.png", tight=tight), title,
+                                   caption))
+
+    def _ordered(self, jobs: list[Job], channel: str, t_min: float = 1.0) -> list[Job]:
+        """``jobs`` from the widest spread of ``channel`` (t >= t_min) to the narrowest: the drawing order."""
+        arrays = [self._s(j)[channel][self._s(j)["t"] >= t_min] for j in jobs]
+        return [jobs[i] for i in draw_order(arrays, [self.style(j)["lw"] for j in jobs])]
+
+    def _labels(self) -> list[str]:
+        return [j.label for j in self.jobs]
+
+    def _by_controller(self, controller: str) -> Job | None:
+        return next((j for j in self.jobs if j.controller == controller and j.variant == 0), None)
 
     # --- the figures -------------------------------------------------------------------------------------
     def fig_terrain(self, plt):
@@ -172,160 +247,328 @@ class ScenarioFigures:
         ax1.set_ylim(bottom=0)
         ax1.set(ylabel="roughness amplitude [rad/s²]",
                 title=self._title(f"Fig. 3: terrain along the path (disturbance seen by {self.ref.label})"))
-        _line(ax2, dist, s["d_true_right"], color="0.35", lw=0.6, label="true d, right wheel")
-        _line(ax2, dist, s["d_true_left"], color="#e377c2", lw=0.6, alpha=0.6, label="true d, left wheel")
+        idx = thin(s["d_true_right"])
+        ax2.plot(dist[idx], s["d_true_right"][idx], color="0.25", lw=0.6, label="true d, right wheel")
+        idx = thin(s["d_true_left"])
+        ax2.plot(dist[idx], s["d_true_left"][idx], color=OKABE_ITO["sky_blue"], lw=0.6, alpha=0.7,
+                 label="true d, left wheel")
         ax2.set(xlabel="distance travelled [m]", ylabel="disturbance d [rad/s²]")
         ax2.legend(loc="lower left")
+        zones = self._zone_spans("d")
         for ax in (ax1, ax2):
-            for i, (a, b, name) in enumerate(self._zone_spans("d")):
+            for a, b, name in zones:
                 if a > dist[0]:
-                    ax.axvline(a, color="tab:red", ls="--", lw=1.0)
+                    ax.axvline(a, color=OKABE_ITO["vermillion"], ls="--", lw=1.0)
                 if ax is ax1:
                     ax.text((a + b) / 2, 0.95, name.replace("_", " "), transform=ax.get_xaxis_transform(),
                             ha="center", va="top", fontsize=9)
             ax.grid(alpha=0.3)
+        ours = []
+        for a, b, name in zones:
+            m = (dist >= a) & (dist <= b)
+            levels = sorted({float(v) for v in np.unique(s["roughness"][m])})
+            ours.append((name.replace("_", " "), f"{'/'.join(f'{v:g}' for v in levels)} (SD of d "
+                                                 f"{_num(float(np.std(s['d_true_right'][m])))})"))
         self._save(fig, "fig03_terrain", "Terrain roughness along the path (paper Fig. 3)",
                    f"Roughness amplitude per terrain zone (zone boundaries dashed) and the resulting lumped "
                    f"disturbance d on both wheels vs distance travelled (seed {self.seed}, {self.ref.label} run)."
                    + (" The scenario's phases switch the roughness off in places and add the damping uncertainty to d "
-                      "(see Fig. 10)."
-                      if self._phases() else ""))
+                      "(see Fig. 10)." if self._phases() else "")
+                   + f" {self.paper_says('terrain')} Ours — roughness amplitude per zone (rad/s²): {_listing(ours)}.")
 
     def fig_trajectory(self, plt):
-        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 6), gridspec_kw={"height_ratios": [1, 1.3]})
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 6.5), gridspec_kw={"height_ratios": [1, 1.3]})
         s0 = self._s(self.ref)
-        for ax, scale in ((ax1, 1.0), (ax2, 1000.0)):
-            _line(ax, s0["x_ref"], s0["y_ref"] * scale, label="reference", **REFERENCE_STYLE)
-            for job in self.jobs:
-                s = self._s(job)
-                _line(ax, s["x"], s["y"] * scale, job)
-            ax.grid(alpha=0.3)
-        ax1.set(xlabel="x [m]", ylabel="y [m]", title=self._title("Fig. 4: trajectories"))
-        _legend(ax1)
-        x0 = float(s0["x_ref"][0]) + 1.0
-        ax2.set_xlim(x0, float(np.nanmax(s0["x_ref"])))
-        later = [self._s(j)["y"][self._s(j)["x"] >= x0] * 1000 for j in self.jobs]
-        vals = np.concatenate(later + [s0["y_ref"][s0["x_ref"] >= x0] * 1000])
+        ordered = self._ordered(self.jobs, "e_y")
+        idx = thin(s0["y_ref"])
+        ax1.plot(s0["x_ref"][idx], s0["y_ref"][idx], label="reference", zorder=10, **REFERENCE_STYLE)
+        for job in ordered:
+            s = self._s(job)
+            idx = thin(s["y"])
+            ax1.plot(s["x"][idx], s["y"][idx], label=job.label, **self.style(job))
+        equal_aspect(ax1)
+        ax1.set(xlabel="x [m]", ylabel="y [m]", title=self._title("Fig. 4: trajectories (equal axes)"))
+        _legend(ax1, ["reference"] + self._labels())
+        # zoom: the lateral offset in mm after the first metre; for a reference along the x axis (the paper's
+        # line) the position y against x as in the paper, for any other path the lateral error e_y against the
+        # distance travelled
+        along_x = float(np.ptp(s0["y_ref"])) < 1e-9 and float(np.ptp(np.cos(s0["theta_ref"]))) < 1e-9
+        if along_x:
+            xs = {j.key: self._s(j)["x"] for j in self.jobs}
+            ys = {j.key: self._s(j)["y"] * 1000 for j in self.jobs}
+            idx = thin(s0["y_ref"])
+            ax2.plot(s0["x_ref"][idx], s0["y_ref"][idx] * 1000, zorder=10, **REFERENCE_STYLE)
+            xlabel, ylabel, what = "x [m]", "y [mm]", "lateral position"
+        else:
+            xs = {j.key: self._s(j).get("distance", self._s(j)["t"]) for j in self.jobs}
+            ys = {j.key: self._s(j)["e_y"] * 1000 for j in self.jobs}
+            ax2.axhline(0, **REFERENCE_STYLE)
+            xlabel, ylabel, what = "distance travelled [m]", "e_y [mm]", "lateral error"
+        x0 = float(min(x[0] for x in xs.values())) + 1.0
+        for job in ordered:
+            idx = thin(ys[job.key])
+            ax2.plot(xs[job.key][idx], ys[job.key][idx], **self.style(job))
+        ax2.set_xlim(x0, float(max(np.nanmax(x) for x in xs.values())))
+        vals = np.concatenate([ys[k][xs[k] >= x0] for k in ys] + ([np.array([0.0])] if not along_x else []))
         vals = vals[np.isfinite(vals)]
         if vals.size:
             pad = 0.1 * (vals.max() - vals.min() or 1.0)
             ax2.set_ylim(vals.min() - pad, vals.max() + pad)
-        ax2.set(xlabel="x [m]", ylabel="y [mm]", title=f"zoom: lateral position after x = {x0:g} m (mm)")
+        ax2.set(xlabel=xlabel, ylabel=ylabel, title=f"zoom: {what} after the first metre (mm; not to scale)")
+        for ax in (ax1, ax2):
+            ax.grid(alpha=0.3)
+        worst = []
+        for job in self.jobs:
+            m = xs[job.key] >= x0
+            worst.append((job.label, float(np.nanmax(np.abs(self._s(job)["deviation"][m]))) if m.any() else math.nan))
+        worst.sort(key=lambda lv: -lv[1] if math.isfinite(lv[1]) else 0.0)
         self._save(fig, "fig04_trajectory", "Trajectories of all controllers (paper Fig. 4)",
-                   "Paths in the plane with the reference (grey dashed); bottom: lateral position in mm after the "
-                   "first metre.")
+                   f"Paths in the plane with the reference (grey dashed), equal scale on both axes; bottom: {what} in "
+                   f"mm after the first metre. {self.paper_says('trajectory')} Ours — largest deviation after the "
+                   f"first metre: {_listing([(l, _mm(v)) for l, v in worst])}.")
 
     def fig_deviation(self, plt):
-        fig, ax = plt.subplots(figsize=(11, 4))
+        fig, ax = plt.subplots(figsize=(11, 4.2))
         self._decorate_time(ax, labels=True)
-        for job in self.jobs:
+        for job in self._ordered(self.jobs, "deviation"):
             s = self._s(job)
-            _line(ax, s["t"], np.maximum(s["deviation"], 1e-7), job)
+            self._trace(ax, job, "deviation")
         ax.set_yscale("log")
+        lo = min(float(np.nanpercentile(self._s(j)["deviation"], 0.5)) for j in self.jobs)
+        ax.set_ylim(bottom=max(lo / 2, 1e-7))
         ax.set(xlabel="t [s]", ylabel="deviation [m] (log scale)",
                title=self._title("Fig. 5/11: deviation from the reference"))
-        _legend(ax)
+        _legend(ax, self._labels())
         ax.grid(alpha=0.3, which="both")
+        spans = self._spans()
+        a, b, name = spans[1] if self.scenario == "paper_2" and len(spans) > 1 else spans[-1]
+        means = [(j.label, S.mean_in(self._s(j)["t"], self._s(j)["deviation"], a, b + 1e-9)) for j in self.jobs]
+        means.sort(key=lambda lv: lv[1] if math.isfinite(lv[1]) else math.inf)
+        ours = (f"mean deviation over {name.replace('_', ' ')} ({a:.3g}–{b:.3g} s): "
+                f"{_listing([(l, _mm(v)) for l, v in means])}")
+        nno, ndo = self._by_controller("smc_ndo_nno"), self._by_controller("smc_ndo")
+        if nno and ndo:
+            vn, vd = dict(means)[nno.label], dict(means)[ndo.label]
+            if math.isfinite(vn) and math.isfinite(vd) and vd > 0:
+                ours += (f"; there SMC-NDO-NNO's is {vn / vd:.3g} × SMC-NDO's" if vn > 2 * vd or vn < 0.5 * vd
+                         else f"; there SMC-NDO-NNO is {abs(vn / vd - 1) * 100:.1f} % "
+                              f"{'above' if vn > vd else 'below'} SMC-NDO")
         self._save(fig, "fig05_deviation", "Deviation vs time (paper Figs. 5 and 11)",
-                   "Distance to the reference point over time, log scale; shaded bands alternate terrain zones, "
-                   "dotted lines mark scenario phases.")
-
-    def _time_panels(self, axes, jobs, keys, ylabels, zero_line: bool = False) -> bool:
-        """One channel per panel against time, every job a line; returns whether a y range was clipped."""
-        clipped = False
-        for ax, key, ylabel in zip(axes, keys, ylabels):
-            self._decorate_time(ax, labels=ax is axes[0])
-            for job in jobs:
-                s = self._s(job)
-                _line(ax, s["t"], s[key], job)
-            if zero_line:
-                ax.axhline(0, color="0.3", lw=0.6)
-            clipped |= self._robust_ylim(ax, [self._s(j)[key] for j in jobs], self._s(self.ref)["t"])
-            ax.set_ylabel(ylabel)
-            ax.grid(alpha=0.3)
-        return clipped
-
-    def _save_time_panels(self, fig, axes, clipped: bool, title: str, name: str, caption: str, text: str) -> None:
-        """Title, legend and time axis of a :meth:`_time_panels` figure, then save it with its caption."""
-        axes[0].set_title(self._title(title))
-        _legend(axes[0])
-        axes[-1].set_xlabel("t [s]")
-        note = " The y ranges fit t ≥ 1 s; the initial transient is off-scale." if clipped else ""
-        self._save(fig, name, caption, text + note)
+                   f"Distance to the reference point over time, log scale; {self._spans_text()}."
+                   f"{self._band_note(self.jobs)} {self.paper_says('deviation')} Ours (seed {self.seed}) — {ours}.")
 
     def fig_pose_errors(self, plt):
         fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True)
-        clipped = self._time_panels(axes, self.jobs, ("e_x", "e_y", "e_theta"), ("e_x [m]", "e_y [m]", "e_θ [rad]"))
-        self._save_time_panels(fig, axes, clipped, "Figs. 6/12: longitudinal, lateral and heading errors",
-                               "fig06_pose_errors", "Pose errors e_x, e_y, e_θ vs time (paper Figs. 6 and 12)",
-                               "Errors in the robot frame.")
+        clipped = False
+        for ax, key, ylabel in zip(axes, ("e_x", "e_y", "e_theta"), ("e_x [m]", "e_y [m]", "e_θ [rad]")):
+            self._decorate_time(ax, labels=ax is axes[0])
+            for job in self._ordered(self.jobs, key):
+                self._trace(ax, job, key)
+            clipped |= self._robust_ylim(ax, [a for j in self.jobs for a in self._arrays(j, key)],
+                                         self._s(self.ref)["t"], t_min=POSE_T_MIN)
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+        axes[0].set_title(self._title("Figs. 6/12: longitudinal, lateral and heading errors"))
+        _legend(axes[0], self._labels())
+        axes[-1].set_xlabel("t [s]")
+        sds = []
+        for job in self.jobs:
+            s = self._s(job)
+            m = S.window_mask(s["t"], 5.0, 10.0)
+            e = s["e_theta"][m]
+            sds.append((job.label, f"{1000 * float(np.mean(np.abs(e))):.3g} / {1000 * float(np.std(e)):.2g}"
+                        if m.any() else "–"))
+        note = (f" The y ranges fit t ≥ {POSE_T_MIN:g} s; the convergence from the offset start pose is off-scale."
+                if clipped else "")
+        self._save(fig, "fig06_pose_errors", "Pose errors e_x, e_y, e_θ vs time (paper Figs. 6 and 12)",
+                   f"Errors in the robot frame; {self._spans_text()}.{note}{self._band_note(self.jobs)} "
+                   f"{self.paper_says('pose_errors')} Ours (seed {self.seed}) — mean |e_θ| / SD of e_θ over 5–10 s "
+                   f"(mrad): {_listing(sds)}.")
+
+    def _panel_grid(self, plt, n_rows: int, ratios=(2.4, 1.0), row_height: float = 1.55):
+        fig, axes = plt.subplots(n_rows, 2, figsize=(12, 1.0 + row_height * n_rows), squeeze=False,
+                                 gridspec_kw={"width_ratios": list(ratios)}, sharex="col", sharey="col")
+        return fig, axes
+
+    def _row_label(self, ax, text: str, color: str) -> None:
+        ax.text(0.005, 0.04, text, transform=ax.transAxes, ha="left", va="bottom", fontsize=8.5, color=color,
+                fontweight="bold", bbox={"facecolor": "white", "alpha": 0.8, "lw": 0, "pad": 1.5}, zorder=20)
 
     def fig_disturbance(self, plt):
         observers = [j for j in self.jobs if "L" in (j.summary.get("parameters") or {})]
         if not observers:
             self.notes.append(f"{self.scenario}: no job with a disturbance observer; Fig. 7 skipped")
             return
-        truth = next((j for j in observers if j.controller == "smc_ndo_nno"), observers[0])
         t0, t1 = self._zoom_window()
-        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7))
-        for ax, full in ((ax1, False), (ax2, True)):
-            s = self._s(truth)
-            t = s["t"]
-            win = (t >= t0) & (t <= t1) if full else slice(None)
-            _line(ax, t[win], s["d_true_right"][win], label=f"true d (from the {truth.label} run)", full=full,
-                  color="0.55", lw=2.0 if full else 1.0)
-            for job in observers:
-                s = self._s(job)
-                d_hat = s["d_hat_ndo_right"] + s["d_hat_nn_right"]
-                what = "NDO + NNO" if np.any(s["d_hat_nn_right"] != 0) else "NDO"
-                _line(ax, s["t"][win], d_hat[win], job, label=f"{job.label}: d̂ ({what})", full=full)
-            ax.set(xlabel="t [s]", ylabel="d, right wheel [rad/s²]")
-            ax.grid(alpha=0.3)
-        self._decorate_time(ax1, labels=True)
-        ax1.axvspan(t0, t1, color="gold", alpha=0.35, zorder=0)
-        ax1.set_title(self._title("Figs. 7/14: disturbance estimates, right wheel"))
-        _legend(ax1)
-        ax2.set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s (highlighted above)")
-        ax2.set_xlim(t0, t1)
+        fig, axes = self._panel_grid(plt, len(observers))
+        errors = []
+        for i, (row, job) in enumerate(zip(axes, observers)):
+            s = self._s(job)
+            d_hat = s["d_hat_ndo_right"] + s["d_hat_nn_right"]
+            what = "NDO + NN" if S.has_nn(s) else "NDO"
+            for ax, full in zip(row, (False, True)):
+                win = S.window_mask(s["t"], t0, t1) if full else np.ones(len(s["t"]), bool)
+                idx = np.flatnonzero(win) if full else thin(d_hat)
+                ax.plot(s["t"][idx], d_hat[idx], label=f"d̂ ({what})", **self.style(job))
+                idx = np.flatnonzero(win) if full else thin(s["d_true_right"])
+                ax.plot(s["t"][idx], s["d_true_right"][idx], label="true d", zorder=5 if full else 1.5,
+                        **{**REFERENCE_STYLE, "lw": 1.0 if full else 0.6})
+                ax.grid(alpha=0.3)
+            self._decorate_time(row[0], labels=i == 0)
+            row[0].axvspan(t0, t1, color=OKABE_ITO["yellow"], alpha=0.35, zorder=0)
+            self._row_label(row[0], f"{job.label}: d̂ ({what})", self.style(job)["color"])
+            row[0].set_ylabel("d_R [rad/s²]")
+            errors.append((job.label, _num(S.mean_abs(s["d_true_right"] - d_hat), 3)))
+        axes[0, 0].set_title(self._title("Figs. 7/14: disturbance estimates, right wheel"))
+        axes[0, 1].set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s (highlighted)")
+        axes[0, 1].set_xlim(t0, t1)
+        axes[0, 1].legend(loc="lower right", fontsize=7)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[-1, 1].set_xlabel("t [s]")
+        est = self.paper["claims"]["estimation"]
         self._save(fig, "fig07_disturbance", "Disturbance estimates of NDO and NDO+NNO vs the true disturbance "
                    "(paper Figs. 7 and 14)",
-                   f"Right wheel; the true lumped disturbance (grey) is that of the {truth.label} run (each "
-                   f"controller's own differs where uncertainty depends on the wheel speed). Bottom: full-resolution "
-                   f"zoom into the roughest stretch.")
+                   f"One row per controller with an observer: its estimate d̂ of the right wheel and its own true "
+                   f"lumped disturbance (grey dashed); right: full-resolution zoom into the roughest stretch. "
+                   f"{self.paper_says('disturbance')} Ours (seed {self.seed}) — mean |d − d̂|, right wheel, rad/s²: "
+                   f"{_listing(errors)} (paper {est['ndo']:.1f} NDO, {est['ndo_nno']:.1f} NDO+NNO).")
+
+    def fig_nn_share(self, plt):
+        nnos = [j for j in self.jobs if S.has_nn(self._s(j))]
+        if not nnos:
+            return
+        t0, t1 = self._zoom_window()
+        fig, axes = plt.subplots(len(nnos), 3, figsize=(13, 1.2 + 2.0 * len(nnos)), squeeze=False, sharex="col",
+                                 sharey="col", gridspec_kw={"width_ratios": [2.2, 1.0, 1.6]})
+        shares = []
+        for i, (row, job) in enumerate(zip(axes, nnos)):
+            s = self._s(job)
+            parts = (("d_true_right", "true d", {**REFERENCE_STYLE, "lw": 0.6}),
+                     ("d_hat_ndo_right", "d̂_NDO", {"color": PART_COLORS["ndo"], "lw": 0.9}),
+                     ("d_hat_nn_right", "d̂_NN", {"color": PART_COLORS["nn"], "lw": 1.1}))
+            for ax, full in zip(row[:2], (False, True)):
+                win = S.window_mask(s["t"], t0, t1) if full else np.ones(len(s["t"]), bool)
+                for z, (channel, label, kw) in enumerate(parts):
+                    y = s[channel]
+                    idx = np.flatnonzero(win) if full else thin(y)
+                    ax.plot(s["t"][idx], y[idx], label=label, zorder=2 + z, **kw)
+            idx = thin(s["d_hat_nn_right"])
+            row[2].plot(s["t"][idx], s["d_hat_nn_right"][idx], label="d̂_NN", **parts[2][2])
+            for ax in row:
+                ax.axhline(0, color="0.3", lw=0.5)
+                ax.grid(alpha=0.3)
+            for ax in (row[0], row[2]):
+                self._decorate_time(ax, labels=i == 0)
+            row[0].axvspan(t0, t1, color=OKABE_ITO["yellow"], alpha=0.35, zorder=0)
+            share = S.nn_share([s], S.nominal_input_inverse(job.config.get("robot")))
+            self._row_label(row[0], f"{job.label}: NN share of |d̂| {100 * share['share_of_estimate']:.1f} %",
+                            self.style(job)["color"])
+            row[0].set_ylabel("d_R [rad/s²]")
+            shares.append((job.label, f"{100 * share['share_of_estimate']:.1f} % of the estimate, "
+                                      f"{100 * share['share_of_u']:.1f} % of |u|"))
+        axes[0, 0].set_title(self._title("The NN's share: NDO part, NN part, true d (right wheel)"))
+        axes[0, 1].set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s")
+        axes[0, 2].set_title("the NN part alone (own scale)")
+        axes[0, 1].set_xlim(t0, t1)
+        axes[0, 1].legend(loc="lower right", fontsize=7)
+        for ax in axes[-1]:
+            ax.set_xlabel("t [s]")
+        self._save(fig, "nn_share", "The NN's share of the disturbance estimate",
+                   f"Per NNO job (each reading of the NN parameters): the NDO part d̂_NDO (orange), the NN part d̂_NN "
+                   f"(sky blue) and the true d (grey dashed), right wheel; middle: zoom into the roughest stretch "
+                   f"(highlighted); right: the NN part alone on its own scale. {self.paper_says('nn_share')} Ours "
+                   f"(seed {self.seed}, both wheels; share = mean |d̂_NN| / mean |d̂_NDO + d̂_NN|, voltage share = "
+                   f"mean |g⁻¹ d̂_NN| / mean |u|) — {_listing(shares)}.")
 
     def fig_voltage(self, plt):
         t0, t1 = self._zoom_window()
-        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(11, 7))
-        for ax, full in ((ax1, False), (ax2, True)):
-            for job in self.jobs:
-                s = self._s(job)
-                win = (s["t"] >= t0) & (s["t"] <= t1) if full else slice(None)
-                _line(ax, s["t"][win], s["u_right"][win], job, full=full, lw=0.9 if not full else 1.2)
-            ax.set(xlabel="t [s]", ylabel="u_R [V]")
-            ax.grid(alpha=0.3)
-        self._decorate_time(ax1, labels=True)
-        clipped = self._robust_ylim(ax1, [self._s(j)["u_right"] for j in self.jobs], self._s(self.ref)["t"])
-        ax1.axvspan(t0, t1, color="gold", alpha=0.35, zorder=0)
-        ax1.set_title(self._title("Figs. 8/13: right-wheel control voltage"))
-        _legend(ax1)
-        ax2.set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s (highlighted above)")
-        ax2.set_xlim(t0, t1)
+        fig, axes = self._panel_grid(plt, len(self.jobs))
+        for i, (row, job) in enumerate(zip(axes, self.jobs)):
+            s = self._s(job)
+            self._trace(row[0], job, "u_right", lw=0.9)
+            self._trace(row[1], job, "u_right", window=S.window_mask(s["t"], t0, t1), full=True, lw=1.2)
+            self._decorate_time(row[0], labels=i == 0)
+            row[0].axvspan(t0, t1, color=OKABE_ITO["yellow"], alpha=0.35, zorder=0)
+            self._row_label(row[0], job.label, self.style(job)["color"])
+            row[0].set_ylabel("u_R [V]")
+            for ax in row:
+                ax.grid(alpha=0.3)
+        clipped = self._robust_ylim(axes[0, 0], [a for j in self.jobs for a in self._arrays(j, "u_right")],
+                                    self._s(self.ref)["t"])
+        axes[0, 0].set_title(self._title("Figs. 8/13: right-wheel control voltage"))
+        axes[0, 1].set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s (highlighted)")
+        axes[0, 1].set_xlim(t0, t1)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[-1, 1].set_xlabel("t [s]")
+        ours = []
+        fig13 = self.paper["figure13_voltage_range_V"]
+        for job in self.jobs:
+            s = self._s(job)
+            if self.scenario == "paper_2":
+                lo, hi = S.range_in(s["t"], s["u_right"], t0, t1, q=(0, 100))
+                ours.append((job.label, f"{lo:.1f}–{hi:.1f} V"))
+            else:
+                tv = float(np.sum(np.abs(np.diff(s["u_right"])))) / float(s["t"][-1] - s["t"][0])
+                ours.append((job.label, f"{tv:.3g} V/s"))
+        ours_text = (f"u_R range in the zoom window: {_listing(ours)} (paper: SMC-NDO "
+                     f"{fig13['smc_ndo'][0]:g}–{fig13['smc_ndo'][1]:g} V, SMC-NDO-NNO {fig13['smc_ndo_nno'][0]:g}–"
+                     f"{fig13['smc_ndo_nno'][1]:g} V)" if self.scenario == "paper_2"
+                     else f"total variation of u_R per second: {_listing(ours)}")
         self._save(fig, "fig08_voltage", "Right-wheel control voltage with a zoom (paper Figs. 8 and 13)",
-                   "Applied (saturated) voltage of the right wheel; bottom: full-resolution zoom into the roughest "
-                   "stretch." + (" The top panel's y range fits t ≥ 1 s; the start-up transient is off-scale."
-                                 if clipped else ""))
+                   f"One row per controller (same y scale): the applied (saturated) voltage of the right wheel; right: "
+                   f"full-resolution zoom into the roughest stretch (highlighted)."
+                   + (" The y range fits t ≥ 1 s; the start-up transient is off-scale." if clipped else "")
+                   + f"{self._band_note(self.jobs)} {self.paper_says('voltage')} Ours (seed {self.seed}) — "
+                     f"{ours_text}.")
 
     def fig_sliding(self, plt):
         jobs = [j for j in self.jobs if any(k in (j.summary.get("parameters") or {}) for k in SMC_FAMILY_KEYS)]
         if not jobs:
             self.notes.append(f"{self.scenario}: no sliding-mode controller; Fig. 9 skipped")
             return
-        fig, axes = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True)
-        clipped = self._time_panels(axes, jobs, ("s_right", "s_left"),
-                                    ("s, right wheel [rad/s]", "s, left wheel [rad/s]"), zero_line=True)
-        self._save_time_panels(fig, axes, clipped, "Fig. 9: sliding variable", "fig09_sliding",
-                               "Sliding variable of both wheels (paper Fig. 9)",
-                               "s = w_d − w per wheel for the sliding-mode controllers.")
+        sigma = self.paper["figure9_smc_sigma"]
+        show_paper = self.scenario == "paper_1" and any(j.controller == "smc" for j in jobs)
+        fig, axes = plt.subplots(len(jobs), 2, figsize=(12, 1.0 + 1.55 * len(jobs)), squeeze=False, sharex=True,
+                                 sharey=True)
+        t_ref = self._s(self.ref)["t"]
+        for i, (row, job) in enumerate(zip(axes, jobs)):
+            for ax, wheel in zip(row, ("right", "left")):
+                self._decorate_time(ax, labels=i == 0)
+                self._trace(ax, job, f"s_{wheel}", lw=0.9)
+                ax.axhline(0, color="0.3", lw=0.6)
+                if show_paper and job.controller == "smc":
+                    line = ax.axhline(sigma[wheel], color=OKABE_ITO["vermillion"], ls=":", lw=1.2,
+                                      label=f"paper's SMC σ ≈ {sigma[wheel]:g}")
+                    ax.legend(handles=[line], loc="lower right", fontsize=7)
+                ax.grid(alpha=0.3)
+            self._row_label(row[0], job.label, self.style(job)["color"])
+            row[0].set_ylabel("s [rad/s]")
+        arrays = [a for j in jobs for w in ("right", "left") for a in self._arrays(j, f"s_{w}")]
+        clipped = self._robust_ylim(axes[0, 0], arrays, t_ref,
+                                    extra=[sigma["right"], sigma["left"]] if show_paper else ())
+        axes[0, 0].set_title(self._title("Fig. 9: sliding variable, right wheel"))
+        axes[0, 1].set_title("left wheel")
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[-1, 1].set_xlabel("t [s]")
+        ours = []
+        for job in jobs:
+            s = self._s(job)
+            r, l = (S.mean_in(s["t"], s[f"s_{w}"], 1.0) for w in ("right", "left"))
+            ours.append((job.label, f"{r:+.2f} / {l:+.2f}"))
+        smc = next((j for j in jobs if j.controller == "smc"), None)
+        if smc is not None and show_paper:
+            s = self._s(smc)
+            within = max(abs(S.mean_in(s["t"], s[f"s_{w}"], 1.0)) for w in ("right", "left"))
+            lead = (f"the SMC σ sits within ±{within:.2g} of 0 on average (paper: near {sigma['right']:g} and "
+                    f"{sigma['left']:g}); ")
+        else:
+            lead = ""
+        self._save(fig, "fig09_sliding", "Sliding variable of both wheels (paper Fig. 9)",
+                   "s = w_d − w per wheel (columns) for the sliding-mode controllers (rows, same y scale)"
+                   + (", with the level the paper reports for SMC (dotted)" if show_paper else "") + "."
+                   + (" The y range fits t ≥ 1 s; the start-up transient is off-scale." if clipped else "")
+                   + f"{self._band_note(jobs)} {self.paper_says('sliding')} Ours (seed {self.seed}) — {lead}mean s "
+                     f"for t ≥ 1 s (right / left, rad/s): {_listing(ours)}.")
 
     def fig_environment(self, plt):
         s = self._s(self.ref)
@@ -336,15 +579,56 @@ class ScenarioFigures:
         ax1.set(ylabel="roughness amplitude [rad/s²]",
                 title=self._title("Fig. 10: terrain roughness and damping (electromechanical resistance)"))
         idx = thin(s["damping_scale"])
-        ax2.plot(s["t"][idx], s["damping_scale"][idx], color="tab:brown", lw=1.0)
+        ax2.plot(s["t"][idx], s["damping_scale"][idx], color=OKABE_ITO["vermillion"], lw=1.0)
         ax2.axhline(1.0, color="0.3", ls=":", lw=0.8)
         ax2.set(xlabel="t [s]", ylabel="B_true / B_nominal [–]")
         for ax in (ax1, ax2):
             self._decorate_time(ax, labels=ax is ax1)
             ax.grid(alpha=0.3)
+        ours = []
+        for a, b, name in self._spans():
+            lo, hi = S.range_in(s["t"], s["damping_scale"], a, b, q=(0, 100))
+            rough = sorted({float(v) for v in np.unique(s["roughness"][S.window_mask(s["t"], a, b)])})
+            ours.append((name.replace("phase: ", ""), f"roughness {'/'.join(f'{v:g}' for v in rough)}, "
+                                                      f"B/B_nom {lo:.2f}–{hi:.2f}"))
         self._save(fig, "fig10_environment", "Roughness and damping profile (paper Fig. 10)",
-                   "Scenario phases (dotted): the roughness amplitude the terrain applies, and the true viscous "
-                   "damping relative to its nominal value (the parametric uncertainty).")
+                   f"The roughness amplitude the terrain applies and the true viscous damping relative to its nominal "
+                   f"value (the parametric uncertainty); {self._spans_text()}. {self.paper_says('environment')} "
+                   f"Ours (seed {self.seed}) — {'; '.join(f'{n}: {v}' for n, v in ours)}.")
+
+    def fig_spectrum(self, plt):
+        dt = float(self.ref.summary.get("dt") or self.ref.setting("simulation.dt") or 0.0)
+        if not dt > 0:
+            self.notes.append(f"{self.scenario}: no time step in the summaries; voltage spectra skipped")
+            return
+        cutoff = S.hf_cutoff(flatten(self.ref.config))
+        spectra = {j.key: S.welch_u(self._s(j), dt) for j in self.jobs}
+        fig, ax = plt.subplots(figsize=(11, 4.5))
+        order = draw_order([np.log10(spectra[j.key][1][1:] + 1e-30) for j in self.jobs],
+                           [self.style(j)["lw"] for j in self.jobs])
+        for i in order:
+            job = self.jobs[i]
+            f, p = spectra[job.key]
+            ax.plot(f[1:], p[1:], label=job.label, **self.style(job))
+        ax.axvline(cutoff, color="0.2", lw=1.0, ls="--")
+        ax.text(cutoff, 0.98, f" {cutoff:g} Hz: hf_fraction cutoff", transform=ax.get_xaxis_transform(),
+                ha="left", va="top", fontsize=8)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set(xlabel="frequency [Hz]", ylabel="PSD of u [V²/Hz] (mean of both wheels)",
+               title=self._title("Chattering in frequency: Welch spectrum of the applied voltage"))
+        ax.grid(alpha=0.3, which="both")
+        _legend(ax, self._labels())
+        m = self.data.metrics
+        hf = []
+        for job in self.jobs:
+            vals = m.loc[(m["job"] == job.dir.name) & (m["status"] == "ok"), "hf_fraction"].astype(float)
+            hf.append((job.label, f"{100 * float(vals.mean()):.2g} %" if vals.notna().any() else "–"))
+        self._save(fig, "spectrum_u", "Welch spectrum of the control voltage",
+                   f"Power spectral density of u − mean(u) over the whole run (scipy.signal.welch, Hann windows of "
+                   f"2 s, half overlap; mean of both wheels), log-log; dashed: the {cutoff:g} Hz cutoff of the "
+                   f"hf_fraction metric. {self.paper_says('spectrum')} Ours — fraction of var(u) above {cutoff:g} Hz "
+                   f"(hf_fraction, mean over seeds): {_listing(hf)}.")
 
     def fig_spread(self, plt):
         keys = self.data.keys(self.scenario)
@@ -355,7 +639,7 @@ class ScenarioFigures:
                                       & (self.data.metrics["status"] == "ok")]
             values.append(frame["deviation_mae"].astype(float).dropna().to_numpy())
             labels.append(job.label)
-            colors.append(color_of(job.controller))
+            colors.append(self.style(job)["color"])
         fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(keys) + 2), 4.2))
         if any(v.size for v in values):
             box = ax.boxplot([v if v.size else [np.nan] for v in values], widths=0.5, showfliers=False,
@@ -370,17 +654,17 @@ class ScenarioFigures:
         ax.set(ylabel="deviation MAE per seed [m] (log scale)",
                title=f"Spread of the deviation MAE over seeds — {self.scenario}")
         ax.grid(alpha=0.3, axis="y", which="both")
+        paper = self.paper["table4"]["rows"]
+        names = self.paper["controller_names"]
+        ours = [(l, _mm(float(np.std(v, ddof=1))) if v.size > 1 else "–") for l, v in zip(labels, values)]
+        theirs = [(n, _mm(r["deviation_sd"])) for n, r in paper.items()]
+        paper_text = (f"Paper — Table 4 SD over {self.paper['table4']['runs']} runs: {_listing(theirs)}."
+                      if self.scenario == "paper_1" else
+                      "Paper — Table 4 is compared with scenario 1 only.")
         self._save(fig, "deviation_spread", "Per-seed spread of the deviation MAE",
-                   "One point per seed (non-diverged runs), box: quartiles and median.")
-
-
-def save(fig, path: Path) -> Path:
-    """Save a PNG atomically and close the figure: one layout pass, then a single draw (``save_figure``'s
-    ``bbox_inches="tight"`` draws twice, which dominates the report's run time)."""
-    fig.tight_layout()
-    io.atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=DPI))
-    pyplot().close(fig)
-    return Path(path)
+                   f"One point per seed (non-diverged runs), box: quartiles and median. {paper_text} Ours — SD over "
+                   f"seeds: {_listing(ours)}" + (" (names map to the paper's rows as in Table 4)."
+                                                 if any(j.controller in names for j in self.jobs) else "."))
 
 
 def common_seed(jobs: list[Job]) -> int | None:
@@ -395,32 +679,35 @@ def common_seed(jobs: list[Job]) -> int | None:
 
 
 FIGURE_METHODS = ("fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
-                  "fig_voltage", "fig_sliding", "fig_environment", "fig_spread")
-
-_PARENT: dict = {}  # what forked workers inherit: the report data and the output dir
+                  "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread")
 
 
-def _make_one(task: tuple[str, str]) -> tuple[list[Figure], list[str]]:
+def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str, str]):
+    """One figure task ``(scenario, method)``: its figures and notes."""
     scenario, method = task
-    sf = ScenarioFigures(_PARENT["data"], scenario, _PARENT["out_dir"])
+    sf = ScenarioFigures(data, scenario, out_dir, styles)
     if sf.seed is None and method != "fig_spread":
         if method == FIGURE_METHODS[0]:
             sf.notes.append(f"{scenario}: no kept time-series seed common to every job (run.keep_series); "
                             f"time-series figures skipped")
         return [], sf.notes
-    _style(pyplot())
     getattr(sf, method)(pyplot())
     return sf.figures, sf.notes
 
 
-def _style(plt) -> None:
-    plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "legend.fontsize": 8,
-                         "path.simplify": True, "agg.path.chunksize": 10000})
+def _worker(data, out_dir, styles, tasks, results) -> None:
+    """A forked figure process: takes ``(i, task)`` from ``tasks`` until None, puts ``(i, result, error)``."""
+    while (item := tasks.get()) is not None:
+        i, task = item
+        try:
+            results.put((i, make_one(data, out_dir, styles, task), None))
+        except BaseException:  # noqa: BLE001 - reported to the parent, which raises it
+            results.put((i, None, traceback.format_exc()))
 
 
 def workers(n_tasks: int) -> int:
-    """Figure processes: forked on Linux (so they share the loaded data), at most 4, else one;
-    ``DDMR_REPORT_WORKERS`` overrides the count."""
+    """Figure processes: forked on Linux (they inherit the loaded data, nothing is pickled but the results), at
+    most 4, else one; ``DDMR_REPORT_WORKERS`` overrides the count."""
     import multiprocessing
     import os
     import sys
@@ -432,24 +719,70 @@ def workers(n_tasks: int) -> int:
     return max(1, min(n, n_tasks))
 
 
-def make_figures(data: ReportData, out_dir: Path) -> tuple[dict[str, list[Figure]], list[str]]:
-    """All figures, per scenario (in parallel processes when the machine has several cores); returns them and
-    notes on what was skipped."""
-    tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
-    for scenario in data.scenarios:  # read the series once, before any fork
-        ScenarioFigures(data, scenario, out_dir)
-    _PARENT.update(data=data, out_dir=Path(out_dir))
-    try:
-        n = workers(len(tasks))
-        if n > 1:
-            import multiprocessing
+def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
+    import multiprocessing
+    import queue
 
-            with multiprocessing.get_context("fork").Pool(n) as pool:
-                results = pool.map(_make_one, tasks, chunksize=1)
-        else:
-            results = [_make_one(task) for task in tasks]
+    ctx = multiprocessing.get_context("fork")
+    task_q, result_q = ctx.Queue(), ctx.Queue()
+    procs = [ctx.Process(target=_worker, args=(data, out_dir, styles, task_q, result_q), daemon=True)
+             for _ in range(n)]
+    for p in procs:
+        p.start()
+    for item in enumerate(tasks):
+        task_q.put(item)
+    for _ in procs:
+        task_q.put(None)
+    results: list = [None] * len(tasks)
+    pending = len(tasks)
+    try:
+        while pending:
+            try:
+                i, result, error = result_q.get(timeout=1.0)
+            except queue.Empty:
+                if not any(p.is_alive() for p in procs):
+                    raise RuntimeError("a figure process died without reporting") from None
+                continue
+            if error is not None:
+                raise RuntimeError(f"figure {tasks[i][1]} of {tasks[i][0]} failed:\n{error}")
+            results[i] = result
+            pending -= 1
     finally:
-        _PARENT.clear()
+        for p in procs:
+            p.join(timeout=5)
+            if p.is_alive():
+                p.terminate()
+    return results
+
+
+def _warm_up() -> None:
+    """Import and initialise in the parent what every figure process needs (scipy.signal, matplotlib's fonts and
+    text layout), so the forked processes share it instead of each paying for it."""
+    import scipy.signal  # noqa: F401
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(2, 2))
+    ax.plot([0, 1], [0, 1], label="d̂ σ θ")
+    ax.set_title("warm-up")
+    ax.legend()
+    fig.canvas.draw()
+    plt.close(fig)
+
+
+def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None
+                 ) -> tuple[dict[str, list[Figure]], list[str]]:
+    """All figures, per scenario (in forked processes when the machine has several cores); returns them and
+    notes on what was skipped."""
+    styles = styles or StyleBook(j.controller for j in data.jobs)
+    tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
+    for scenario in data.scenarios:  # read the series (and bands) once, before any fork
+        ScenarioFigures(data, scenario, out_dir, styles)
+    n = workers(len(tasks))
+    if n > 1:
+        _warm_up()
+        results = _run_forked(data, Path(out_dir), styles, tasks, n)
+    else:
+        results = [make_one(data, Path(out_dir), styles, task) for task in tasks]
     figures: dict[str, list[Figure]] = {s: [] for s in data.scenarios}
     notes: list[str] = []
     for (scenario, _), (figs, task_notes) in zip(tasks, results):

@@ -1,9 +1,15 @@
-"""Paired comparisons between two controllers over the same seeds (same seed and scenario -> same terrain).
+"""Paired comparisons between two controllers over the same seeds (same seed and scenario -> same terrain),
+and the verdict rules that turn one into holds / tie / does not hold / inconclusive.
 
 For a reference controller ``a`` and a candidate ``b``, over the seeds both completed without diverging:
-the mean of each, the mean paired difference ``b - a`` and the relative reduction ``1 - mean(b) / mean(a)``,
-each with a 95 % percentile bootstrap confidence interval (seeds resampled in pairs, a fixed-seed numpy
-Generator, so a report is reproducible), and the two-sided Wilcoxon signed-rank test of the differences.
+the mean of each, the mean paired difference ``b - a`` (in the metric's unit and in percent of ``mean(a)``) and
+the relative reduction ``1 - mean(b) / mean(a)``, each with a 95 % percentile bootstrap confidence interval
+(seeds resampled in pairs, a fixed-seed numpy Generator, so a report is reproducible), and the two-sided
+Wilcoxon signed-rank test of the differences.
+
+A practical margin (:class:`Margin`) says which difference is negligible: when the whole 95 % CI of the
+difference lies inside ``±margin`` the two controllers are equivalent in practice (a TOST-style equivalence
+test, here at the 2.5 % level per side since the CI is the 95 % one), and the verdict is a *tie*.
 """
 
 from __future__ import annotations
@@ -45,9 +51,20 @@ class Paired:
     def b_higher(self) -> bool:
         return self.p < ALPHA and self.diff_ci[0] > 0
 
+    @property
+    def rel_diff(self) -> float:
+        """``(mean(b) - mean(a)) / mean(a)``, i.e. ``-reduction`` (a fraction; x100 for percent)."""
+        return -self.reduction
+
+    @property
+    def rel_diff_ci(self) -> tuple[float, float]:
+        return -self.reduction_ci[1], -self.reduction_ci[0]
+
     def as_dict(self) -> dict:
         return {"n_pairs": self.n, "mean_a": self.mean_a, "mean_b": self.mean_b, "diff": self.diff,
-                "diff_ci_low": self.diff_ci[0], "diff_ci_high": self.diff_ci[1], "reduction": self.reduction,
+                "diff_ci_low": self.diff_ci[0], "diff_ci_high": self.diff_ci[1], "diff_pct": 100 * self.rel_diff,
+                "diff_pct_ci_low": 100 * self.rel_diff_ci[0], "diff_pct_ci_high": 100 * self.rel_diff_ci[1],
+                "reduction": self.reduction,
                 "reduction_ci_low": self.reduction_ci[0], "reduction_ci_high": self.reduction_ci[1],
                 "wilcoxon_statistic": self.statistic, "p_value": self.p}
 
@@ -88,66 +105,172 @@ def _wilcoxon(d: np.ndarray) -> tuple[float, float]:
     return float(res.pvalue), float(res.statistic)
 
 
+
+# --- the practical margin ------------------------------------------------------------------------------------
+#: Default margin for metrics in metres (the deviation and e_x, e_y): 0.1 mm. See :data:`MARGIN_WHY`.
+DEFAULT_MARGIN_M = 1e-4
+#: Default margin for metrics in other units (V/s, rad/s^2, fractions): 5 % of the reference controller's mean.
+DEFAULT_MARGIN_REL = 0.05
+MARGIN_WHY = (
+    "0.1 mm is the resolution of the paper's own Table 4 (deviations printed in m to four decimals), about 4 % of "
+    "its smallest mean deviation (2.6 mm), thirty times smaller than the wheel radius (30 mm), and far below what "
+    "wheel odometry or an external positioning system resolves on a robot crossing 15 m of rough terrain; no "
+    "engineer would choose one controller over another for a 0.1 mm smaller mean deviation")
+_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "cm": 1e-2}
+
+
+@dataclass(frozen=True)
+class Margin:
+    """What counts as a negligible difference: ``metres`` for metrics in metres (None: use ``relative`` for them
+    too), ``relative`` x the reference's mean for every other metric."""
+
+    metres: float | None = DEFAULT_MARGIN_M
+    relative: float = DEFAULT_MARGIN_REL
+
+    @classmethod
+    def parse(cls, value) -> "Margin":
+        """``Margin``, a number (metres), or text: ``0.1mm``, ``1e-4``, ``100um``, ``0.0001m`` (absolute, for
+        metrics in metres; 5 % for the others) or ``5%`` (relative, for every metric)."""
+        if isinstance(value, Margin):
+            return value
+        if value is None:
+            return cls()
+        if isinstance(value, (int, float)):
+            return cls._checked(float(value), DEFAULT_MARGIN_REL)
+        text = str(value).strip().replace(" ", "")
+        if text.endswith("%"):
+            try:
+                rel = float(text[:-1]) / 100.0
+            except ValueError:
+                raise ValueError(f"margin {value!r}: expected a percentage such as 5%") from None
+            return cls._checked(None, rel)
+        for unit in sorted(_UNITS, key=len, reverse=True):
+            if text.endswith(unit) and text[:-len(unit)]:
+                try:
+                    return cls._checked(float(text[:-len(unit)]) * _UNITS[unit], DEFAULT_MARGIN_REL)
+                except ValueError:
+                    break
+        try:
+            return cls._checked(float(text), DEFAULT_MARGIN_REL)
+        except ValueError:
+            raise ValueError(f"margin {value!r}: expected a length (0.1mm, 1e-4 in metres) or a percentage "
+                             f"(5%)") from None
+
+    @classmethod
+    def _checked(cls, metres: float | None, relative: float) -> "Margin":
+        for v in (metres, relative):
+            if v is not None and not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"margin must be a finite number >= 0, got {v!r}")
+        return cls(metres, relative)
+
+    def absolute(self, unit: str, reference_mean: float) -> float:
+        """The margin in the metric's unit, for a metric in ``unit`` whose reference mean is ``reference_mean``."""
+        if unit == "m" and self.metres is not None:
+            return self.metres
+        return self.relative * abs(reference_mean)
+
+    def describe(self) -> str:
+        rel = f"{100 * self.relative:g} % of the reference controller's mean"
+        if self.metres is None:
+            return f"±{rel} for every metric"
+        return f"±{1000 * self.metres:g} mm for metrics in metres (deviation, e_x, e_y), ±{rel} for the others"
+
+
 # --- verdicts ------------------------------------------------------------------------------------------------
-HOLDS, FAILS = "holds", "does not hold"
+HOLDS, TIE, FAILS, INCONCLUSIVE = "holds", "tie", "does not hold", "inconclusive"
+CATEGORIES = (HOLDS, TIE, FAILS, INCONCLUSIVE)
+
+
+def category(verdict: str) -> str:
+    """The verdict without its reason: ``"does not hold (…)"`` -> ``"does not hold"``."""
+    return verdict.split(" (", 1)[0]
 
 
 def _too_few(pr: Paired) -> str | None:
-    return f"inconclusive (only {pr.n} paired seeds; at least {MIN_PAIRS} needed)" if pr.n < MIN_PAIRS else None
+    return f"{INCONCLUSIVE} (only {pr.n} paired seeds; at least {MIN_PAIRS} needed)" if pr.n < MIN_PAIRS else None
+
+
+def _tie(pr: Paired, margin: float) -> str | None:
+    """Equivalent in practice: the whole 95 % CI of the difference inside (-margin, +margin)."""
+    lo, hi = pr.diff_ci
+    if margin > 0 and -margin < lo and hi < margin:
+        return f"{TIE} (95 % CI of the difference inside ±margin)"
+    return None
 
 
 def _not_significant(pr: Paired) -> str:
     if math.isnan(pr.p):
-        return "inconclusive (no paired difference to test)"
+        return f"{INCONCLUSIVE} (no paired difference to test)"
     if pr.p >= ALPHA:
-        return f"inconclusive (p >= {ALPHA:g})"
-    return "inconclusive (Wilcoxon and bootstrap CI disagree)"
+        return f"{INCONCLUSIVE} (p >= {ALPHA:g})"
+    return f"{INCONCLUSIVE} (Wilcoxon and bootstrap CI disagree)"
 
 
-def verdict_lower(pr: Paired) -> str:
-    """Claim: ``b`` is below ``a``."""
-    if _too_few(pr):
-        return _too_few(pr)
-    if pr.b_lower:
+def verdict_lower(pr: Paired, margin: float) -> str:
+    """Claim: ``b`` is below ``a`` by more than a negligible amount.
+
+    tie: the 95 % CI of ``b - a`` inside ±margin; holds: p < 0.05 and the CI below -margin; does not hold:
+    p < 0.05 and the CI above 0 (``b`` is higher); inconclusive otherwise."""
+    if (v := _too_few(pr) or _tie(pr, margin)):
+        return v
+    lo, hi = pr.diff_ci
+    if pr.p < ALPHA and hi < -margin:
         return HOLDS
     if pr.b_higher:
         return f"{FAILS} (significantly the other way)"
+    if pr.b_lower:
+        return f"{INCONCLUSIVE} (lower, but the 95 % CI reaches into ±margin)"
     return _not_significant(pr)
 
 
-def verdict_about(pr: Paired, target: float, band: float = 0.10) -> str:
-    """Claim: ``b`` is about ``target`` (a fraction) lower than ``a``, i.e. the reduction is in target +- band."""
-    if _too_few(pr):
-        return _too_few(pr)
+def verdict_over(pr: Paired, threshold: float, margin: float) -> str:
+    """Claim: ``b`` is more than ``threshold`` (a fraction) lower than ``a``.
+
+    tie: the CI of the difference inside ±margin; holds: p < 0.05, the CI of the difference below -margin and
+    the CI of the reduction above ``threshold``; does not hold: the CI of the reduction below ``threshold``."""
+    if (v := _too_few(pr) or _tie(pr, margin)):
+        return v
+    r_lo, r_hi = pr.reduction_ci
+    if pr.b_lower and pr.diff_ci[1] < -margin and r_lo > threshold:
+        return HOLDS
+    if r_hi < threshold:
+        return f"{FAILS} (95 % CI of the reduction below {100 * threshold:.0f} %)"
+    if not pr.b_lower:
+        return _not_significant(pr)
+    return f"{INCONCLUSIVE} (the 95 % CI of the reduction includes {100 * threshold:.0f} %)"
+
+
+def verdict_about(pr: Paired, target: float, band: float, margin: float) -> str:
+    """Claim: ``b`` is about ``target`` (a fraction) lower than ``a``: the reduction is in target ± band.
+
+    tie: the CI of the difference inside ±margin; does not hold: the CI of the reduction entirely outside the
+    band; holds: p < 0.05, the CI of the difference below -margin and the reduction's estimate in the band."""
+    if (v := _too_few(pr) or _tie(pr, margin)):
+        return v
     lo, hi = target - band, target + band
     r_lo, r_hi = pr.reduction_ci
     if r_hi < lo or r_lo > hi:
-        return f"{FAILS} (95 % CI outside {100 * lo:.0f}–{100 * hi:.0f} %)"
-    if pr.b_lower and lo <= pr.reduction <= hi:
-        return HOLDS
-    if not pr.b_lower:
-        return _not_significant(pr) if not pr.b_higher else f"{FAILS} (significantly the other way)"
-    return "inconclusive (the CI overlaps the band, the estimate is outside it)"
-
-
-def verdict_over(pr: Paired, threshold: float) -> str:
-    """Claim: ``b`` is more than ``threshold`` (a fraction) lower than ``a``."""
-    if _too_few(pr):
-        return _too_few(pr)
-    r_lo, r_hi = pr.reduction_ci
-    if pr.b_lower and r_lo > threshold:
-        return HOLDS
-    if r_hi < threshold:
-        return f"{FAILS} (95 % CI below {100 * threshold:.0f} %)"
+        return f"{FAILS} (95 % CI of the reduction outside {100 * lo:.0f}–{100 * hi:.0f} %)"
     if not pr.b_lower:
         return _not_significant(pr)
-    return f"inconclusive (the 95 % CI includes {100 * threshold:.0f} %)"
+    if not lo <= pr.reduction <= hi:
+        return f"{INCONCLUSIVE} (the 95 % CI overlaps {100 * lo:.0f}–{100 * hi:.0f} %, the estimate is outside it)"
+    if pr.diff_ci[1] >= -margin:
+        return f"{INCONCLUSIVE} (the 95 % CI of the difference reaches into ±margin)"
+    return HOLDS
 
 
 def combine(verdicts: list[str]) -> str:
-    """All parts hold -> holds; any part fails -> does not hold; else inconclusive."""
-    if verdicts and all(v == HOLDS for v in verdicts):
-        return HOLDS
-    if any(v.startswith(FAILS) for v in verdicts):
+    """Any part does not hold -> does not hold; all hold -> holds; all hold or tie, one at least ties -> tie
+    (the claimed order holds where the controllers differ; the tied ones are equal in practice);
+    else inconclusive."""
+    cats = [category(v) for v in verdicts]
+    if not cats:
+        return INCONCLUSIVE
+    if FAILS in cats:
         return FAILS
-    return "inconclusive"
+    if all(c == HOLDS for c in cats):
+        return HOLDS
+    if all(c in (HOLDS, TIE) for c in cats):
+        return TIE
+    return INCONCLUSIVE

@@ -22,7 +22,7 @@ TABLE4_COLUMNS = (
 )
 
 
-_NUMERIC = re.compile(r"^\s*([-+−–×]|\d|\[)")
+_NUMERIC = re.compile(r"^\s*([-+−–×]|\d|\[|\(\d|\(-)")
 
 # --- formatting ----------------------------------------------------------------------------------------------
 def isnan(x) -> bool:
@@ -50,8 +50,27 @@ def pct(x, digits: int = 1) -> str:
     return "–" if isnan(x) else f"{100 * float(x):.{digits}f} %"
 
 
-def pm(mean, sd, digits: int = 4) -> str:
-    return fmt(mean, digits) if isnan(sd) else f"{fmt(mean, digits)} ± {fmt(sd, 2)}"
+def pm(mean, sd, sd_digits: int = 2, max_digits: int = 6) -> str:
+    """``mean ± SD`` with no spurious precision: the SD to ``sd_digits`` significant digits and the mean to the
+    same decimal place (at most ``max_digits`` significant digits); an SD below 1e-12 of |mean| (rounding noise of
+    identical runs) is shown as 0. Numbers below 1e-4 or from 1e5 on share one power of ten:
+    ``(8.0 ± 1.1)e-05``."""
+    if isnan(mean):
+        return "–"
+    mean = float(mean)
+    if isnan(sd):
+        return fmt(mean)
+    sd = abs(float(sd))
+    if sd <= 1e-12 * abs(mean) or sd == 0.0:
+        return f"{fmt(mean)} ± 0"
+    exp = math.floor(math.log10(max(abs(mean), sd)))
+    shared = exp < -4 or exp >= 5
+    scale = 10.0 ** exp if shared else 1.0
+    m, s = mean / scale, sd / scale
+    place_sd = max(sd_digits - 1 - math.floor(math.log10(s)), 0)
+    place_m = place_sd if m == 0 else max(min(place_sd, max_digits - 1 - math.floor(math.log10(abs(m)))), 0)
+    body = f"{m:.{place_m}f} ± {s:.{place_sd}f}"
+    return f"({body})e{exp:+03d}" if shared else body
 
 
 def md_table(headers: Sequence[str], rows: Iterable[Sequence], align: str | None = None) -> str:
@@ -79,10 +98,21 @@ def _base_columns(data: ReportData, scenario: str, key: str) -> dict:
     return {"scenario": scenario, "controller": job.controller, "key": key, "label": job.label, "job": job.dir.name}
 
 
-def stats_frame(data: ReportData, metrics: Sequence[str] = tuple(METRICS)) -> "pd.DataFrame":
-    """Per scenario and controller, over seeds: runs, diverged runs, mean and SD of each metric (non-diverged)."""
+#: Suffix of the steady-state metric columns a job's metrics.csv may have (``deviation_mae_ss``, ...).
+SS = "_ss"
+
+
+def ss_metrics(data: ReportData) -> list[str]:
+    """The steady-state columns (``<metric>_ss``) present in the jobs' metrics.csv, in the order of METRICS."""
+    return [m + SS for m in METRICS if m + SS in data.metrics.columns]
+
+
+def stats_frame(data: ReportData, metrics: Sequence[str] | None = None) -> "pd.DataFrame":
+    """Per scenario and controller, over seeds: runs, diverged runs, mean and SD of each metric (non-diverged);
+    by default every metric of METRICS and the steady-state columns the jobs have."""
     import pandas as pd
 
+    metrics = list(METRICS) + ss_metrics(data) if metrics is None else metrics
     rows = []
     for scenario in data.scenarios:
         for key in data.keys(scenario):
@@ -119,6 +149,9 @@ def table4_frame(stats: "pd.DataFrame") -> "pd.DataFrame":
             published = paper[name][col] if name in paper else math.nan
             row[f"paper_{col}"] = published
             row[f"ratio_{col}"] = ours / published if not isnan(published) and not isnan(ours) else math.nan
+        for metric, stat, col, _ in TABLE4_COLUMNS:  # the steady-state block, when the jobs have it
+            if f"{metric}{SS}_{stat}" in r:
+                row[f"{col}{SS}"] = r[f"{metric}{SS}_{stat}"]
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -165,10 +198,18 @@ def md_metric_table(frame: "pd.DataFrame", scenario: str, metrics: Sequence[tupl
     return md_table(headers, rows)
 
 
+def has_ss(t4: "pd.DataFrame") -> bool:
+    return all(f"{col}{SS}" in t4 for _, _, col, _ in TABLE4_COLUMNS)
+
+
 def md_table4(t4: "pd.DataFrame", scenario: str) -> str:
+    """Table 4 of one scenario; with the steady-state columns, the whole-run block then the steady-state block."""
     part = t4[t4["scenario"] == scenario]
     with_paper = scenario == PAPER_SCENARIO
-    headers = ["Controller", "Runs", "Diverged"] + [h for *_, h in TABLE4_COLUMNS]
+    ss = has_ss(t4)
+    headers = ["Controller", "Runs", "Diverged"] + [("Whole run: " if ss else "") + h for *_, h in TABLE4_COLUMNS]
+    if ss:
+        headers += [f"Steady state: {h}" for *_, h in TABLE4_COLUMNS]
     rows = []
     for _, r in part.iterrows():
         cells = [r["label"], str(int(r["runs"])), str(int(r["diverged"]))]
@@ -179,6 +220,8 @@ def md_table4(t4: "pd.DataFrame", scenario: str) -> str:
             elif with_paper:
                 ours += " (paper –)"
             cells.append(ours)
+        if ss:
+            cells += [fmt(r[f"{col}{SS}"]) for _, _, col, _ in TABLE4_COLUMNS]
         rows.append(cells)
     return md_table(headers, rows)
 

@@ -1,17 +1,36 @@
-"""Verdicts on the paper's claims, from our numbers, each comparison paired by seed (see :mod:`.stats`)."""
+"""Verdicts on the paper's claims, from our numbers, each comparison paired by seed (see :mod:`.stats`).
+
+Each comparison ends in one of four verdicts (the rules are :data:`VERDICT_RULES`, written into the report):
+holds, tie (the controllers are equal within a practical margin), does not hold, inconclusive.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ddmr_cli.engine.metrics import METRICS
 from ddmr_cli.report.data import ReportData, paper_numbers
-from ddmr_cli.report.stats import (ALPHA, BOOT_SEED, N_BOOT, Paired, combine, paired, verdict_about, verdict_lower,
-                    verdict_over)
-from ddmr_cli.report.tables import fmt, isnan, md_table, pct
+from ddmr_cli.report.stats import (ALPHA, BOOT_SEED, FAILS, HOLDS, INCONCLUSIVE, MARGIN_WHY, MIN_PAIRS, N_BOOT, TIE,
+                                   Margin, Paired, category, combine, paired, verdict_about, verdict_lower,
+                                   verdict_over)
+from ddmr_cli.report.tables import fmt, isnan, md_table
 
 NNO_READINGS = ("smc_ndo_nno", "smc_ndo_nno_text")
 RANKING = ("pid", "smc", "smc_ndo")  # then the NNO reading; largest deviation first
 ABOUT_BAND = 0.10
+#: Suffix of the steady-state metric columns (e.g. ``deviation_mae_ss``), used for the verdicts when present.
+SS = "_ss"
+
+VERDICT_RULES = {
+    HOLDS: "the claimed difference is there, significant (Wilcoxon p < 0.05, 95 % CI excluding 0) and larger than "
+           "the margin (the whole CI beyond it), plus the claim's own threshold where it has one",
+    TIE: "the whole 95 % CI of the paired difference lies inside ±margin: the two controllers are equal in practice "
+         "(a TOST-style equivalence test; the claimed difference is not there)",
+    FAILS: "the data contradict the claim: the difference is significantly the other way, or the CI of the "
+           "reduction lies entirely outside the claimed range",
+    INCONCLUSIVE: f"anything else (too few seeds — fewer than {MIN_PAIRS} pairs —, p ≥ 0.05, or a CI that "
+                  f"straddles the margin or the claimed threshold); the reason is given in brackets",
+}
 
 
 @dataclass
@@ -26,11 +45,13 @@ class Check:
     metric: str
     result: Paired | None
     verdict: str
+    margin: float = float("nan")   # in the metric's unit
     note: str = ""
 
     def row(self) -> dict:
         out = {"claim": self.claim, "scenario": self.scenario, "nno_reading": self.reading, "reference": self.a,
-               "candidate": self.b, "metric": self.metric, "verdict": self.verdict, "note": self.note}
+               "candidate": self.b, "metric": self.metric, "margin": self.margin, "verdict": self.verdict,
+               "verdict_category": category(self.verdict), "note": self.note}
         out.update(self.result.as_dict() if self.result else {})
         return out
 
@@ -44,7 +65,25 @@ class ClaimResult:
     rule: str
     checks: list[Check] = field(default_factory=list)
     overall: dict[tuple[str, str], str] = field(default_factory=dict)   # (scenario, reading) -> verdict
-    notes: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)                      # why a (scenario, reading) was not checked
+
+    def skip(self, why: str) -> None:
+        if why not in self.skipped:
+            self.skipped.append(why)
+
+
+def unit_of(metric: str) -> str:
+    base = metric[:-len(SS)] if metric.endswith(SS) else metric
+    return METRICS[base][0] if base in METRICS else ""
+
+
+def deviation_metric(data: ReportData) -> str:
+    """``deviation_mae_ss`` (steady state) when every job's metrics.csv has it, else ``deviation_mae``."""
+    col = "deviation_mae" + SS
+    m = data.metrics
+    if col in m and m.loc[m["status"] == "ok", col].notna().any():
+        return col
+    return "deviation_mae"
 
 
 def _key_for(data: ReportData, scenario: str, controller: str) -> tuple[str | None, str]:
@@ -56,56 +95,69 @@ def _key_for(data: ReportData, scenario: str, controller: str) -> tuple[str | No
     return controller, ""
 
 
-def _per_seed(data: ReportData, scenario: str, key: str, metric: str):
+def per_seed(data: ReportData, scenario: str, key: str, metric: str):
     job = data.job(scenario, key)
     frame = data.metrics[(data.metrics["job"] == job.dir.name) & (data.metrics["status"] == "ok")]
     return frame.set_index("seed")[metric].astype(float)
 
 
-def _compare(data, claim, scenario, reading, a, b, metric, judge) -> Check:
-    result = paired(_per_seed(data, scenario, a, metric), _per_seed(data, scenario, b, metric))
+def _compare(data, claim, scenario, reading, a, b, metric, judge, margin: Margin) -> Check:
+    result = paired(per_seed(data, scenario, a, metric), per_seed(data, scenario, b, metric))
     if result is None:
-        return Check(claim, scenario, reading, a, b, metric, None, "skipped", "no seed completed by both")
-    return Check(claim, scenario, reading, a, b, metric, result, judge(result))
+        return Check(claim, scenario, reading, a, b, metric, None, f"{INCONCLUSIVE} (no seed completed by both)")
+    m = margin.absolute(unit_of(metric), result.mean_a)
+    return Check(claim, scenario, reading, a, b, metric, result, judge(result, m), m)
 
 
-def evaluate(data: ReportData) -> list[ClaimResult]:
-    claims = paper_numbers()["claims"]
-    est = claims["estimation"]
+def claims(data: ReportData) -> list[ClaimResult]:
+    """The paper's claims with their rules (no checks yet)."""
+    est = paper_numbers()["claims"]["estimation"]
     est_reduction = 1.0 - est["ndo_nno"] / est["ndo"]
-    results = [
-        ClaimResult("ranking", "Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO (mean deviation, largest first)",
-                    "each adjacent pair must be ordered as claimed with Wilcoxon p < 0.05 and the 95 % CI of the "
-                    "difference excluding 0; the ranking holds when all pairs hold, does not hold when any pair "
-                    "is significantly the other way, and is inconclusive otherwise"),
-        ClaimResult("vs_smc_ndo", "SMC-NDO-NNO: about 40 % lower deviation MAE than SMC-NDO",
-                    f"holds when the reduction is significant (p < 0.05, CI of the difference below 0) and its "
-                    f"estimate lies in 40 ± {100 * ABOUT_BAND:.0f} %; does not hold when its 95 % CI lies outside that band"),
-        ClaimResult("vs_smc", "SMC-NDO-NNO: over 60 % lower deviation MAE than SMC",
-                    "holds when the lower end of the 95 % CI of the reduction is above 60 % (and p < 0.05); "
-                    "does not hold when the upper end is below 60 %"),
+    dev = "steady-state deviation MAE" if deviation_metric(data).endswith(SS) else "deviation MAE"
+    return [
+        ClaimResult("ranking", f"Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO ({dev}, largest first)",
+                    "each adjacent pair is judged by the rules above on the difference smaller − larger; the ranking "
+                    "holds when every pair holds, is a tie when every pair holds or ties and one at least ties (the "
+                    "order holds where the controllers differ), does not hold when a pair is significantly the "
+                    "other way, and is inconclusive otherwise"),
+        ClaimResult("vs_smc_ndo", f"SMC-NDO-NNO: about 40 % lower {dev} than SMC-NDO",
+                    f"holds when the difference is significant and beyond the margin and the reduction "
+                    f"(= −difference in %) lies in 40 ± {100 * ABOUT_BAND:.0f} %; does not hold when the 95 % CI of "
+                    f"the reduction lies outside that band"),
+        ClaimResult("vs_smc", f"SMC-NDO-NNO: over 60 % lower {dev} than SMC",
+                    "holds when the lower end of the 95 % CI of the reduction is above 60 % (p < 0.05, beyond the "
+                    "margin); does not hold when its upper end is below 60 %"),
         ClaimResult("chattering", "SMC-NDO-NNO: near-complete elimination of chattering (vs SMC-NDO)",
                     "read as a reduction of at least 90 %: holds when the 95 % CI of the reduction lies above 90 % "
-                    "(and p < 0.05), does not hold when it lies below 90 %; checked on the total variation of u "
-                    "(V/s) and on the fraction of var(u) above 10 Hz"),
+                    "(p < 0.05, beyond the margin), does not hold when it lies below 90 %; checked on the total "
+                    "variation of u (V/s) and on the fraction of var(u) above 10 Hz, combined like the ranking"),
         ClaimResult("estimation", f"Disturbance-estimation MAE: NDO {est['ndo']:.1f} vs NDO+NNO {est['ndo_nno']:.1f} "
                                   f"(a {100 * est_reduction:.0f} % reduction, 'three times lower')",
                     f"our d_est_mae of SMC-NDO (NDO estimate) vs SMC-NDO-NNO (NDO + NN estimate); holds when the "
-                    f"reduction is significant and its estimate lies in {100 * est_reduction:.0f} ± {100 * ABOUT_BAND:.0f} %; "
-                    f"does not hold when its 95 % CI lies outside that band"),
+                    f"reduction is significant, beyond the margin, and its estimate lies in "
+                    f"{100 * est_reduction:.0f} ± {100 * ABOUT_BAND:.0f} %; does not hold when its 95 % CI lies "
+                    f"outside that band"),
     ]
+
+
+def evaluate(data: ReportData, margin: Margin | None = None) -> list[ClaimResult]:
+    margin = margin or Margin()
+    est = paper_numbers()["claims"]["estimation"]
+    est_reduction = 1.0 - est["ndo_nno"] / est["ndo"]
+    dev = deviation_metric(data)
+    results = claims(data)
     by_id = {c.id: c for c in results}
     readings = [r for r in NNO_READINGS if any(j.controller == r for j in data.jobs)]
     if not readings:
         for c in results:
-            c.notes.append("skipped: the sweep has no SMC-NDO-NNO job (smc_ndo_nno or smc_ndo_nno_text)")
+            c.skip("the sweep has no SMC-NDO-NNO job (smc_ndo_nno or smc_ndo_nno_text)")
         return results
     specs = [  # claim id, reference controller, metric, judge
-        ("vs_smc_ndo", "smc_ndo", "deviation_mae", lambda r: verdict_about(r, 0.40, ABOUT_BAND)),
-        ("vs_smc", "smc", "deviation_mae", lambda r: verdict_over(r, 0.60)),
-        ("chattering", "smc_ndo", "chattering", lambda r: verdict_over(r, 0.90)),
-        ("chattering", "smc_ndo", "hf_fraction", lambda r: verdict_over(r, 0.90)),
-        ("estimation", "smc_ndo", "d_est_mae", lambda r: verdict_about(r, est_reduction, ABOUT_BAND)),
+        ("vs_smc_ndo", "smc_ndo", dev, lambda r, m: verdict_about(r, 0.40, ABOUT_BAND, m)),
+        ("vs_smc", "smc", dev, lambda r, m: verdict_over(r, 0.60, m)),
+        ("chattering", "smc_ndo", "chattering", lambda r, m: verdict_over(r, 0.90, m)),
+        ("chattering", "smc_ndo", "hf_fraction", lambda r, m: verdict_over(r, 0.90, m)),
+        ("estimation", "smc_ndo", "d_est_mae", lambda r, m: verdict_about(r, est_reduction, ABOUT_BAND, m)),
     ]
     shared: dict[tuple[str, str, str], Check] = {}
     for scenario in data.scenarios:
@@ -113,7 +165,7 @@ def evaluate(data: ReportData) -> list[ClaimResult]:
             nno, why = _key_for(data, scenario, reading)
             if nno is None:
                 for c in results:
-                    c.notes.append(f"{scenario}, {reading}: skipped ({why})")
+                    c.skip(why)
                 continue
             # ranking: adjacent pairs among the controllers present, in the claimed order
             chain, missing = [], []
@@ -122,28 +174,24 @@ def evaluate(data: ReportData) -> list[ClaimResult]:
                 (chain.append(key) if key else missing.append(why))
             chain.append(nno)
             rank = by_id["ranking"]
-            if missing:
-                rank.notes.append(f"{scenario}, {reading}: " + "; ".join(missing)
-                                  + ("; the order is checked among the others" if len(chain) > 1 else ""))
+            for why in missing:
+                rank.skip(why + ("; the order is checked among the others" if len(chain) > 1 else ""))
             if len(chain) > 1:
                 verdicts = []
                 for worse, better in zip(chain, chain[1:]):
                     done = (scenario, worse, better)
                     if done not in shared:  # pairs without the NNO are shared by both readings
-                        shared[done] = _compare(data, rank.id, scenario, reading, worse, better, "deviation_mae",
-                                                verdict_lower)
+                        shared[done] = _compare(data, rank.id, scenario, reading, worse, better, dev,
+                                                verdict_lower, margin)
                         rank.checks.append(shared[done])
-                    chk = shared[done]
-                    verdicts.append(chk.verdict)
+                    verdicts.append(shared[done].verdict)
                 rank.overall[(scenario, reading)] = combine(verdicts)
             for cid, ref_ctrl, metric, judge in specs:
-                claim = by_id[cid]
                 ref, why = _key_for(data, scenario, ref_ctrl)
                 if ref is None:
-                    claim.notes.append(f"{scenario}, {reading}: skipped ({why})")
+                    by_id[cid].skip(why)
                     continue
-                chk = _compare(data, cid, scenario, reading, ref, nno, metric, judge)
-                claim.checks.append(chk)
+                by_id[cid].checks.append(_compare(data, cid, scenario, reading, ref, nno, metric, judge, margin))
             for cid in ("vs_smc_ndo", "vs_smc", "chattering", "estimation"):
                 mine = [c.verdict for c in by_id[cid].checks if c.scenario == scenario and c.reading == reading]
                 if mine:
@@ -151,14 +199,10 @@ def evaluate(data: ReportData) -> list[ClaimResult]:
     return results
 
 
-def our_order(data: ReportData, scenario: str, keys: list[str]) -> str:
-    means = {k: float(_per_seed(data, scenario, k, "deviation_mae").mean()) for k in keys}
+def our_order(data: ReportData, scenario: str, keys: list[str], metric: str) -> str:
+    means = {k: float(per_seed(data, scenario, k, metric).mean()) for k in keys}
     order = sorted(keys, key=lambda k: -means[k] if not isnan(means[k]) else 0.0)
-    return " > ".join(f"{data.label(k)} ({fmt(means[k], 3)} m)" for k in order)
-
-
-def _ci(lo, hi, f=fmt) -> str:
-    return f"[{f(lo)}, {f(hi)}]"
+    return " > ".join(f"{data.label(k)} ({fmt(1000 * means[k], 3)} mm)" for k in order)
 
 
 def _p(p) -> str:
@@ -166,70 +210,104 @@ def _p(p) -> str:
 
 
 def _bold(verdict: str) -> str:
-    return f"**{verdict}**"
+    cat = category(verdict)
+    return f"**{cat}**{verdict[len(cat):]}"
 
 
-def markdown(data: ReportData, results: list[ClaimResult]) -> str:
-    """The verdicts section: a summary list, then one subsection per claim."""
-    units = {"deviation_mae": "m", "chattering": "V/s", "hf_fraction": "", "d_est_mae": "rad/s²"}
+def _scaled(metric: str) -> tuple[float, str]:
+    """Display scale and unit: metres are shown in mm."""
+    u = unit_of(metric)
+    return (1000.0, "mm") if u == "m" else (1.0, {"1": "", "rad/s^2": "rad/s²"}.get(u, u))
+
+
+def _diff_cells(r: Paired, metric: str) -> list[str]:
+    k, u = _scaled(metric)
+    lo, hi = r.diff_ci
+    plo, phi = r.rel_diff_ci
+    return [f"{fmt(k * r.diff, 3)} [{fmt(k * lo, 3)}, {fmt(k * hi, 3)}]",
+            f"{100 * r.rel_diff:+.1f} % [{100 * plo:+.1f}, {100 * phi:+.1f}]"]
+
+
+def _margin_cell(chk: Check) -> str:
+    k, u = _scaled(chk.metric)
+    return "–" if isnan(chk.margin) else f"±{fmt(k * chk.margin, 2)}{' ' + u if u else ''}"
+
+
+def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None = None) -> str:
+    """The verdicts section: rules, a summary of the verdicts that could be reached, then one subsection per
+    checked claim; the claims that could not be checked are listed once, with why."""
+    margin = margin or Margin()
+    dev = deviation_metric(data)
     out = ["## Verdicts on the paper's claims", "",
            f"Every comparison is paired by seed (same seed and scenario -> same terrain and uncertainty), over the "
-           f"seeds both controllers completed without diverging: mean of each, 95 % percentile bootstrap CI "
-           f"({N_BOOT} resamples of the seeds, numpy Generator seeded {BOOT_SEED}) of the difference and of the "
-           f"relative reduction 1 − mean(candidate)/mean(reference), and the two-sided Wilcoxon signed-rank test "
-           f"(scipy.stats.wilcoxon) of the paired differences; significance level {ALPHA}. The paper's Table 4 "
-           f"does not say which scenario it is; its claims are checked in every scenario.", ""]
-    summary = []
+           f"seeds both controllers completed without diverging: the mean of each, the paired mean difference "
+           f"candidate − reference in the metric's unit and in percent of the reference's mean, each with its 95 % "
+           f"percentile bootstrap CI ({N_BOOT} resamples of the seeds, numpy Generator seeded {BOOT_SEED}), and "
+           f"the two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) of the paired differences; "
+           f"significance level {ALPHA}. The paper's Table 4 does not say which scenario it is; its claims are "
+           f"checked in every scenario.", "",
+           f"**Practical margin: {margin.describe()}.** A difference inside it is negligible: "
+           + (f"{MARGIN_WHY}. " if margin.metres is not None else "")
+           + "Change it with `ddmr report PATH --margin 0.05mm` (or `--margin 5%` for a relative margin on every "
+             "metric).", ""]
+    if dev.endswith(SS):
+        out += [f"**The deviation claims use the steady-state deviation (`{dev}` in metrics.csv)**, so the initial "
+                f"convergence from the offset start pose does not decide them; the whole-run numbers are in Table 4.",
+                ""]
+    else:
+        out += ["The deviation claims use the whole-run deviation MAE (`deviation_mae`, as the paper's Table 4); "
+                "the jobs have no steady-state column (`deviation_mae_ss`).", ""]
+    out += ["Verdicts:", ""] + [f"- **{k}**: {v}." for k, v in VERDICT_RULES.items()] + [""]
+    summary = [f"- {c.title} — {scenario}, {data.label(reading)}: {_bold(v)}"
+               for c in results for (scenario, reading), v in c.overall.items()]
+    not_checked = [c for c in results if not c.checks]
+    out += ["### Summary", ""] + (summary or ["- no claim could be checked with these jobs"]) + [""]
     for c in results:
-        for (scenario, reading), v in c.overall.items():
-            summary.append(f"- {c.title} — {scenario}, {data.label(reading)}: {_bold(v)}")
-        for note in c.notes:
-            if "skipped" in note and not c.overall:
-                summary.append(f"- {c.title}: {note}")
-    out += ["### Summary", ""] + (summary or ["- no claim could be checked"]) + [""]
-    for c in results:
+        if not c.checks:
+            continue
         out += [f"### {c.title}", "", f"Rule: {c.rule}.", ""]
+        rows = []
+        for chk in c.checks:
+            r = chk.result
+            k, u = _scaled(chk.metric)
+            if c.id == "ranking":
+                first = [chk.scenario, f"{data.label(chk.a)} > {data.label(chk.b)}"]
+            else:
+                first = [chk.scenario, data.label(chk.b), chk.metric + (f" ({u})" if u else "")]
+            nums = (["–"] * 6 if r is None else
+                    [r.n, fmt(k * r.mean_a, 4), fmt(k * r.mean_b, 4), *_diff_cells(r, chk.metric), _p(r.p)])
+            rows.append(first + nums + [_margin_cell(chk), chk.verdict + (f" ({chk.note})" if chk.note else "")])
         if c.id == "ranking":
-            rows = []
-            for chk in c.checks:
-                r = chk.result
-                rows.append([chk.scenario, f"{data.label(chk.a)} > {data.label(chk.b)}",
-                             *(["–"] * 5 if r is None else
-                               [r.n, fmt(r.mean_a), fmt(r.mean_b), f"{fmt(r.diff)} {_ci(*r.diff_ci)}", _p(r.p)]),
-                             chk.verdict + (f" ({chk.note})" if chk.note else "")])
-            if rows:
-                out += [md_table(["Scenario", "Pair (claimed larger > smaller)", "Seeds", "Mean larger (m)",
-                                  "Mean smaller (m)", "Difference smaller − larger (m) [95 % CI]", "Wilcoxon p",
-                                  "Pair verdict"], rows), ""]
-            for (scenario, reading), v in c.overall.items():
+            _, u = _scaled(dev)
+            headers = ["Scenario", "Pair (claimed larger > smaller)", "Seeds", f"Mean larger ({u})",
+                       f"Mean smaller ({u})", f"Difference smaller − larger ({u}) [95 % CI]",
+                       "Difference (% of larger) [95 % CI]", "Wilcoxon p", "Margin", "Pair verdict"]
+        else:
+            headers = ["Scenario", "Candidate", "Metric", "Seeds", "Reference mean", "Candidate mean",
+                       "Difference candidate − reference [95 % CI]", "Difference (% of reference) [95 % CI]",
+                       "Wilcoxon p", "Margin", "Verdict"]
+        out += [md_table(headers, rows), ""]
+        for (scenario, reading), v in c.overall.items():
+            line = f"- {scenario}, {data.label(reading)}: {_bold(v)}"
+            if c.id == "ranking":
                 keys = [k for k in data.keys(scenario)
                         if data.controller_of(k) in RANKING + (reading,) and k == data.controller_of(k)]
-                out.append(f"- {scenario}, {data.label(reading)}: {_bold(v)}. Our order by mean deviation, "
-                           f"largest first: {our_order(data, scenario, keys)}.")
-        else:
-            rows = []
-            for chk in c.checks:
-                r = chk.result
-                u = units.get(chk.metric, "")
-                name = f"{chk.metric} ({u})" if u else chk.metric
-                rows.append([chk.scenario, data.label(chk.b), name,
-                             *(["–"] * 5 if r is None else
-                               [r.n, f"{data.label(chk.a)}: {fmt(r.mean_a)}", fmt(r.mean_b),
-                                f"{pct(r.reduction)} {_ci(*r.reduction_ci, f=pct)}", _p(r.p)]),
-                             chk.verdict + (f" ({chk.note})" if chk.note else "")])
-            if rows:
-                out += [md_table(["Scenario", "Candidate", "Metric", "Seeds", "Reference mean", "Candidate mean",
-                                  "Reduction [95 % CI]", "Wilcoxon p", "Verdict"], rows), ""]
-            for (scenario, reading), v in c.overall.items():
-                out.append(f"- {scenario}, {data.label(reading)}: {_bold(v)}")
-        if c.id == "estimation" and c.checks:
+                line += f". Our order by mean {dev}, largest first: {our_order(data, scenario, keys, dev)}."
+            out.append(line)
+        if c.id == "estimation":
             est = paper_numbers()["claims"]["estimation"]
             out += ["", f"Paper: NDO {est['ndo']}, NDO+NNO {est['ndo_nno']} (units of d, rad/s²). Ours: the "
                         f"whole-run mean of |d_true − d̂| over both wheels; for SMC-NDO-NNO the NDO part alone is "
                         f"in the estimation table (d_est_mae_ndo)."]
-        for note in c.notes:
-            out.append(f"- Note: {note}")
+        for why in c.skipped:
+            out.append(f"- Not checked here: {why}.")
         out.append("")
+    if not_checked:
+        reasons = list(dict.fromkeys(why for c in not_checked for why in c.skipped))
+        out += ["### Claims not checked", "",
+                "These claims need controllers this report has no (single) job for: "
+                + "; ".join(c.title for c in not_checked) + ".", "",
+                "Why: " + "; ".join(reasons) + ".", ""]
     return "\n".join(out)
 
 

@@ -246,9 +246,10 @@ class RunConfig:
 class ReportConfig:
     auto: bool = param(False, unit="", help="write the report (ddmr report) when the run or sweep ends; "
                        "report=true is short for report.auto=true", range="true | false")
-    margin: Optional[float] = param(None, unit="", help="equivalence margin of the report's verdicts (null: the "
-                                    "report's default); passed to ddmr report when it takes one",
-                                    range="null or a number, as the report defines it", model=7)
+    margin: Optional[str] = param(None, unit="m or %", help="practical margin of the report's verdicts: a paired "
+                                  "difference whose 95% CI lies inside it is a tie (null: 0.1mm for metrics in "
+                                  "metres, 5% of the reference's mean for the others)",
+                                  range="null, a length (0.1mm, 1e-4) or a percentage (5%)", model=7)
 
 
 #: documentation of the launcher presets' ``cluster`` keys (conf/launcher/*.yaml), not model numbers

@@ -1,0 +1,176 @@
+"""What every figure shares: the controllers' styles, matplotlib on Agg, decimation and saving.
+
+Styles: the Okabe-Ito palette (distinguishable with the common colour-vision deficiencies) and a distinct line
+style per controller, so two controllers differ in colour *and* dash pattern. The paper's controllers have fixed
+styles (SMC-NDO-NNO solid black and SMC-NDO dashed green as in the paper's Figs. 8 and 13); any other controller
+gets a free (colour, dash, marker) combination, preferring one derived from its name so it keeps its style from
+report to report. A :class:`StyleBook` built from all the controllers of a report gives each a style no other
+controller of that report has, whatever their number.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from ddmr_cli.cli.io import atomic_write
+
+#: Okabe & Ito (2008), "Color universal design": eight colours told apart with every common colour-vision deficiency.
+OKABE_ITO = {
+    "black": "#000000", "orange": "#E69F00", "sky_blue": "#56B4E9", "bluish_green": "#009E73",
+    "blue": "#0072B2", "vermillion": "#D55E00", "reddish_purple": "#CC79A7", "yellow": "#F0E442",
+}
+#: Dash patterns (matplotlib on/off sequences), told apart even on a noisy line.
+DASHES = {
+    "solid": "-", "dashed": (0, (5, 2)), "dotted": (0, (1, 1.4)), "dashdot": (0, (6, 2, 1.2, 2)),
+    "long": (0, (11, 3)), "dashdotdot": (0, (6, 2, 1.2, 2, 1.2, 2)), "sparse": (0, (2, 4)),
+}
+MARKERS = (None, "o", "s", "^", "D", "v", "x", "P")
+#: Grey dashed: the reference path and the true disturbance (as the paper draws them).
+REFERENCE_STYLE = {"color": "0.45", "ls": (0, (5, 2.5)), "lw": 1.3}
+
+CONTROLLER_LABELS = {"pid": "PID", "smc": "SMC", "smc_ndo": "SMC-NDO", "smc_ndo_nno": "SMC-NDO-NNO",
+                     "smc_ndo_nno_text": "SMC-NDO-NNO (text reading)", "smc_nno": "SMC-NNO",
+                     "open_loop": "open loop"}
+
+DPI = 110
+MAX_POINTS = 5000
+
+
+@dataclass(frozen=True)
+class Style:
+    color: str
+    dash: str
+    marker: str | None = None
+    width: float = 1.1
+
+    def kwargs(self, variant: int = 0) -> dict:
+        """matplotlib keywords; a controller's further jobs (variants: e.g. a gain sweep) add a marker."""
+        marker = self.marker if variant == 0 else MARKERS[1 + (variant - 1) % (len(MARKERS) - 1)]
+        kw = {"color": self.color, "ls": DASHES[self.dash], "lw": self.width}
+        if marker:
+            kw.update(marker=marker, markevery=0.07, markersize=4, markerfacecolor="none")
+        return kw
+
+
+#: The paper's controllers (and the other built-in ones): fixed, pairwise distinct in colour and in dash.
+KNOWN_STYLES = {
+    "smc_ndo_nno": Style(OKABE_ITO["black"], "solid", width=1.5),
+    "smc_ndo": Style(OKABE_ITO["bluish_green"], "dashed", width=1.3),
+    "smc": Style(OKABE_ITO["blue"], "dashdot"),
+    "pid": Style(OKABE_ITO["vermillion"], "dotted", width=1.3),
+    "smc_ndo_nno_text": Style(OKABE_ITO["reddish_purple"], "long", width=1.3),
+    "smc_nno": Style(OKABE_ITO["sky_blue"], "dashdotdot"),
+    "open_loop": Style(OKABE_ITO["orange"], "sparse"),
+}
+
+
+def _free_combinations() -> list[Style]:
+    """Every (colour, dash, marker) not taken by a known controller, in a fixed order (yellow last: it is faint)."""
+    taken = {(s.color, s.dash, s.marker) for s in KNOWN_STYLES.values()}
+    return [Style(c, d, m) for m, c, d in itertools.product(MARKERS, OKABE_ITO.values(), DASHES)
+            if (c, d, m) not in taken]
+
+
+_FREE = _free_combinations()
+
+
+class StyleBook:
+    """One style per controller, distinct within the book: known controllers keep theirs; any other takes the
+    free combination its name hashes to, or the next free one (so the style is stable while there is no clash).
+    Past ``len(_FREE)`` unknown controllers the combinations repeat (more than 400 controllers in one figure)."""
+
+    def __init__(self, controllers: Iterable[str] = ()):
+        self._styles: dict[str, Style] = {}
+        for c in sorted(set(controllers), key=lambda c: (c not in KNOWN_STYLES, c)):
+            self.add(c)
+
+    def add(self, controller: str) -> Style:
+        if controller in self._styles:
+            return self._styles[controller]
+        if controller in KNOWN_STYLES:
+            style = KNOWN_STYLES[controller]
+        else:
+            used = set(self._styles.values())
+            start = zlib.crc32(controller.encode()) % len(_FREE)
+            free = [s for s in _FREE[start:] + _FREE[:start] if s not in used]
+            style = free[0] if free else _FREE[start]
+        self._styles[controller] = style
+        return style
+
+    def __getitem__(self, controller: str) -> Style:
+        return self.add(controller)
+
+
+def label_of(controller: str) -> str:
+    return CONTROLLER_LABELS.get(controller, controller)
+
+
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend, with the report's font sizes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update({"font.size": 9, "axes.titlesize": 10, "legend.fontsize": 8,
+                         "path.simplify": True, "agg.path.chunksize": 10000})
+    return plt
+
+
+def save(fig, path: Path, tight: bool = True, dpi: int = DPI) -> Path:
+    """Save a figure atomically as PNG and close it: one layout pass (``tight_layout`` unless the figure placed
+    its axes itself), then a single draw (``bbox_inches="tight"`` would draw twice)."""
+    if tight:
+        fig.tight_layout()
+    atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+    pyplot().close(fig)
+    return Path(path)
+
+
+def thin(y: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
+    """Indices of at most about ``max_points`` samples of ``y`` keeping each bin's minimum and maximum (and the
+    first and last sample), so a decimated plot of a chattering signal keeps its full envelope; NaN-safe."""
+    n = len(y)
+    if n <= max_points:
+        return np.arange(n)
+    k = int(math.ceil(n / (max_points // 2)))
+    m = n // k * k
+    bins = np.nan_to_num(np.asarray(y[:m], float), nan=0.0).reshape(-1, k)
+    base = np.arange(0, m, k)
+    idx = np.concatenate([base + bins.argmin(axis=1), base + bins.argmax(axis=1), np.arange(m, n), [0, n - 1]])
+    return np.unique(idx)
+
+
+def spread(a) -> float:
+    """1st-99th percentile range of the finite values of ``a`` (0 when there are none)."""
+    a = np.asarray(a, float)
+    a = a[np.isfinite(a)]
+    return float(np.percentile(a, 99) - np.percentile(a, 1)) if a.size else 0.0
+
+
+def draw_order(arrays: list[np.ndarray], widths: list[float] | None = None, rtol: float = 0.15) -> list[int]:
+    """Indices of ``arrays`` from the widest spread (drawn first, at the back) to the narrowest (drawn last, on
+    top), so a quiet line is never buried under a noisy one. Lines whose spreads agree within ``rtol`` (they
+    overlap) go thickest first, so a thin dashed line stays visible on a thick solid one."""
+    spreads = [spread(a) for a in arrays]
+    widths = list(widths) if widths is not None else [1.0] * len(arrays)
+    order = sorted(range(len(arrays)), key=lambda i: -spreads[i])
+    groups: list[list[int]] = []
+    for i in order:
+        if groups and spreads[groups[-1][0]] - spreads[i] <= rtol * max(spreads[groups[-1][0]], 1e-300):
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    return [i for g in groups for i in sorted(g, key=lambda i: (-widths[i], -spreads[i]))]
+
+
+def equal_aspect(ax) -> None:
+    """Same scale on x and y (a circle stays a circle); the data limits grow to fill the axes box."""
+    ax.set_aspect("equal", adjustable="datalim")

@@ -1,0 +1,131 @@
+"""What the report's figures share, on constructed data: styles, decimation, draw order, saving, and the numbers
+computed from time series (the NN's share, the voltage spectrum)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ddmr_cli.report import plotting as P
+from ddmr_cli.report import signals as S
+
+
+# --- styles ------------------------------------------------------------------------------------------------------
+def test_known_controllers_differ_in_colour_and_dash():
+    styles = list(P.KNOWN_STYLES.values())
+    assert len({s.color for s in styles}) == len(styles)
+    assert len({s.dash for s in styles}) == len(styles)
+    assert set(s.color for s in styles) <= set(P.OKABE_ITO.values())
+    assert P.KNOWN_STYLES["smc_ndo_nno"].color == "#000000" and P.KNOWN_STYLES["smc_ndo_nno"].dash == "solid"
+
+
+def test_style_book_gives_every_controller_its_own_style():
+    unknown = ["sta", "adrc", "adaptive_smc"] + [f"ctrl{i}" for i in range(60)]
+    book = P.StyleBook(list(P.KNOWN_STYLES) + unknown)
+    styles = [book[c] for c in list(P.KNOWN_STYLES) + unknown]
+    assert len(set(styles)) == len(styles)                          # no two controllers alike
+    assert all(book[c] == P.KNOWN_STYLES[c] for c in P.KNOWN_STYLES)  # the paper's keep theirs
+    # the same controller gets the same style in another report without a clash, whatever the order
+    assert P.StyleBook(["adrc", "sta"])["sta"] == P.StyleBook(["sta"])["sta"]
+    assert P.StyleBook(reversed(unknown))["ctrl7"] == book["ctrl7"]
+
+
+def test_style_kwargs_mark_variants():
+    s = P.KNOWN_STYLES["smc"]
+    assert "marker" not in s.kwargs(0) and s.kwargs(0)["color"] == s.color
+    assert s.kwargs(1)["marker"] != s.kwargs(2)["marker"]
+
+
+# --- decimation, draw order, saving ----------------------------------------------------------------------------
+def test_thin_keeps_the_envelope():
+    t = np.linspace(0, 10, 100_001)
+    y = np.sin(2 * np.pi * 50 * t) + 0.1 * t      # fast chattering on a slow ramp
+    y[12_345] = 7.0                                # a lone spike must survive
+    idx = P.thin(y, 2000)
+    assert len(idx) <= 2100 and idx[0] == 0 and idx[-1] == len(y) - 1
+    assert np.all(np.diff(idx) > 0)
+    assert y[idx].max() == pytest.approx(7.0) and y[idx].min() == pytest.approx(y.min())
+    assert np.array_equal(P.thin(y[:100], 2000), np.arange(100))
+    y_nan = y.copy()
+    y_nan[:10] = np.nan
+    assert len(P.thin(y_nan, 2000)) <= 2100
+
+
+def test_draw_order_puts_quiet_lines_on_top():
+    rng = np.random.default_rng(0)
+    loud, quiet = 5 * rng.standard_normal(1000), 0.1 * rng.standard_normal(1000)
+    assert P.draw_order([quiet, loud]) == [1, 0]
+    # overlapping lines: the thick one at the back, so the thin dashed one shows on it
+    same = rng.standard_normal(1000)
+    assert P.draw_order([same, same * 1.01], widths=[1.0, 1.5]) == [1, 0]
+
+
+def test_save_writes_a_png_and_closes(tmp_path):
+    plt = P.pyplot()
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    path = P.save(fig, tmp_path / "a" / "f.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not plt.fignum_exists(fig.number)
+
+
+def test_run_plots_use_the_shared_helpers(tmp_path):
+    from ddmr_cli.report.run_plots import run_plots
+
+    n = 3000
+    t = np.linspace(0, 3, n)
+    series = {c: np.zeros(n) for c in ("x_ref", "y_ref", "x", "y", "deviation", "e_x", "e_y", "e_theta",
+                                        "u_right", "u_left", "s_right", "s_left", "d_true_right",
+                                        "d_hat_ndo_right", "d_hat_nn_right")}
+    series.update(t=t, x_ref=t, x=t, y=0.01 * np.sin(t))
+    paths = run_plots(series, "sta", "paper_1", 0, tmp_path)   # a controller the report does not know
+    assert [p.name for p in paths] == ["trajectory.png", "errors.png", "control.png"]
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in paths)
+
+
+# --- numbers from time series -------------------------------------------------------------------------------------
+def test_nn_share_on_constructed_signals():
+    n = 1000
+    s = {"d_hat_ndo_right": np.full(n, 3.0), "d_hat_ndo_left": np.full(n, -3.0),
+         "d_hat_nn_right": np.full(n, 1.0), "d_hat_nn_left": np.full(n, -1.0),
+         "u_right": np.full(n, 10.0), "u_left": np.full(n, 10.0)}
+    out = S.nn_share([s], g_inv=lambda a: 0.5 * a)
+    assert out["share_of_estimate"] == pytest.approx(1.0 / 4.0)
+    assert out["mean_abs_u_nn"] == pytest.approx(0.5)
+    assert out["share_of_u"] == pytest.approx(0.05)
+    assert math.isnan(S.nn_share([s])["share_of_u"])    # no model: no voltage share, the rest stands
+    assert S.has_nn(s) and not S.has_nn({**s, "d_hat_nn_right": np.zeros(n), "d_hat_nn_left": np.zeros(n)})
+
+
+def test_nominal_input_inverse_is_the_models():
+    from ddmr_cli.model.robot import NominalModel, Robot
+
+    g_inv = S.nominal_input_inverse({"mass": 15.0, "wheel_radius": 0.03})
+    a = np.array([[1.0, -2.0]])
+    expected = NominalModel.from_robot(Robot(mass=15.0, wheel_radius=0.03)).voltage_for(a, np.zeros_like(a))
+    assert np.allclose(g_inv(a), expected)
+    assert S.nominal_input_inverse({"no_such_parameter": 1.0}) is None
+
+
+def test_welch_finds_the_chattering_frequency():
+    dt = 1e-3
+    t = np.arange(0, 10, dt)
+    s = {"u_right": 11 + np.sin(2 * np.pi * 37 * t), "u_left": 11 + 0.5 * np.sin(2 * np.pi * 37 * t)}
+    f, p = S.welch_u(s, dt)
+    assert f[np.argmax(p)] == pytest.approx(37.0, abs=0.5)
+    assert p[0] < 1e-6 * p.max()   # the mean is removed
+
+
+def test_hf_cutoff_from_config_or_engine():
+    assert S.hf_cutoff({"metrics.hf_cutoff": 25}) == pytest.approx(25.0)
+    assert S.hf_cutoff({}) == pytest.approx(10.0)
+
+
+def test_window_helpers():
+    t = np.linspace(0, 10, 1001)
+    y = np.where(t < 5, 1.0, 3.0)
+    assert S.mean_in(t, y, 5.0) == pytest.approx(3.0)
+    assert S.range_in(t, y, 0.0, 5.0, q=(0, 100)) == pytest.approx((1.0, 1.0))
+    assert math.isnan(S.mean_in(t, y, 20.0))

@@ -1,0 +1,260 @@
+"""The verdict logic of ``ddmr report`` on constructed data: every branch of the rules (holds / tie / does not hold
+/ inconclusive), the paired statistics they read, the practical margin, and the claims wired to them."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ddmr_cli.report import stats as S
+from ddmr_cli.report.stats import FAILS, HOLDS, INCONCLUSIVE, TIE, Margin, Paired, category
+
+
+def pr(diff_ci, reduction_ci=(0.0, 0.0), p=1e-6, n=50, mean_a=1.0, diff=None, reduction=None) -> Paired:
+    """A constructed comparison: only what the rules read."""
+    diff = sum(diff_ci) / 2 if diff is None else diff
+    reduction = sum(reduction_ci) / 2 if reduction is None else reduction
+    return Paired(n, mean_a, mean_a + diff, diff, tuple(diff_ci), reduction, tuple(reduction_ci), p, 0.0)
+
+
+M = 0.1  # margin in the metric's unit
+
+
+# --- verdict_lower: "b is below a" ---------------------------------------------------------------------------
+@pytest.mark.parametrize("case, expected", [
+    (dict(diff_ci=(-0.5, -0.2)), HOLDS),                          # below -margin, significant
+    (dict(diff_ci=(-0.05, 0.08)), TIE),                            # inside ±margin
+    (dict(diff_ci=(-0.09, -0.01)), TIE),                           # significant, but negligible: still a tie
+    (dict(diff_ci=(0.2, 0.5)), FAILS),                             # significantly the other way
+    (dict(diff_ci=(-0.3, -0.05)), INCONCLUSIVE),                   # lower, but reaching into the margin
+    (dict(diff_ci=(-0.5, 0.3), p=0.4), INCONCLUSIVE),              # straddles 0, not significant
+    (dict(diff_ci=(-0.5, -0.2), p=0.2), INCONCLUSIVE),             # CI below, Wilcoxon disagrees
+    (dict(diff_ci=(-0.5, -0.2), n=5), INCONCLUSIVE),               # too few seeds
+    (dict(diff_ci=(-0.05, 0.05), n=3), INCONCLUSIVE),              # too few seeds beats a tie
+])
+def test_verdict_lower_every_branch(case, expected):
+    assert category(S.verdict_lower(pr(**case), M)) == expected
+
+
+def test_verdict_lower_reasons():
+    assert "significantly the other way" in S.verdict_lower(pr((0.2, 0.5)), M)
+    assert "reaches into" in S.verdict_lower(pr((-0.3, -0.05)), M)
+    assert "p >= 0.05" in S.verdict_lower(pr((-0.5, 0.3), p=0.4), M)
+    assert "only 5 paired seeds" in S.verdict_lower(pr((-0.5, -0.2), n=5), M)
+    assert "no paired difference" in S.verdict_lower(pr((-0.5, 0.3), p=math.nan), M)
+
+
+def test_zero_margin_never_ties():
+    assert category(S.verdict_lower(pr((-0.05, -0.01)), 0.0)) == HOLDS
+    assert category(S.verdict_lower(pr((-0.01, 0.01), p=0.5), 0.0)) == INCONCLUSIVE
+
+
+# --- verdict_over: "b is more than threshold lower than a" ------------------------------------------------------
+@pytest.mark.parametrize("case, expected", [
+    (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.7, 0.8)), HOLDS),
+    (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.4, 0.5)), FAILS),          # CI of the reduction below 60 %
+    (dict(diff_ci=(0.1, 0.3), reduction_ci=(-0.3, -0.1)), FAILS),           # higher, not lower
+    (dict(diff_ci=(-0.08, 0.05), reduction_ci=(-0.05, 0.08)), TIE),         # equal within the margin
+    (dict(diff_ci=(-0.8, -0.5), reduction_ci=(0.5, 0.8)), INCONCLUSIVE),    # CI of the reduction includes 60 %
+    (dict(diff_ci=(-0.8, 0.1), reduction_ci=(-0.1, 0.8), p=0.3), INCONCLUSIVE),
+    (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.7, 0.8), n=4), INCONCLUSIVE),
+])
+def test_verdict_over_every_branch(case, expected):
+    assert category(S.verdict_over(pr(**case), 0.60, M)) == expected
+
+
+def test_verdict_over_is_not_always_holds():
+    """The mutation this suite must catch: a verdict_over that always says holds."""
+    verdicts = {category(S.verdict_over(pr((-0.8, -0.7), (0.4, 0.5)), 0.6, M)),
+                category(S.verdict_over(pr((-0.05, 0.05), (-0.05, 0.05)), 0.6, M))}
+    assert verdicts == {FAILS, TIE}
+
+
+# --- verdict_about: "b is about target lower than a" ------------------------------------------------------------
+@pytest.mark.parametrize("case, expected", [
+    (dict(diff_ci=(-0.45, -0.35), reduction_ci=(0.35, 0.45), reduction=0.4), HOLDS),
+    (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.7, 0.8)), FAILS),               # far more than 40 %
+    (dict(diff_ci=(-0.2, -0.15), reduction_ci=(0.15, 0.2)), FAILS),             # far less
+    (dict(diff_ci=(-0.05, 0.05), reduction_ci=(-0.05, 0.05)), TIE),
+    (dict(diff_ci=(-0.6, -0.25), reduction_ci=(0.25, 0.6), reduction=0.55), INCONCLUSIVE),  # estimate outside
+    (dict(diff_ci=(-0.6, 0.1), reduction_ci=(-0.1, 0.6), p=0.2), INCONCLUSIVE),  # not significant
+    (dict(diff_ci=(-0.45, -0.35), reduction_ci=(0.35, 0.45), reduction=0.4, n=2), INCONCLUSIVE),
+])
+def test_verdict_about_every_branch(case, expected):
+    assert category(S.verdict_about(pr(**case), 0.40, 0.10, M)) == expected
+
+
+def test_verdict_about_needs_the_difference_beyond_the_margin():
+    """A reduction of 40 % of a tiny mean is within a physical margin: not a practical improvement."""
+    small = pr((-0.45, -0.35), (0.35, 0.45), reduction=0.4)
+    assert category(S.verdict_about(small, 0.40, 0.10, margin=0.4)) == INCONCLUSIVE
+    assert category(S.verdict_about(small, 0.40, 0.10, margin=0.5)) == TIE
+
+
+# --- combining the parts of a claim -----------------------------------------------------------------------------
+@pytest.mark.parametrize("parts, expected", [
+    ([HOLDS, HOLDS, HOLDS], HOLDS),
+    ([HOLDS, "tie (…)", HOLDS], TIE),
+    (["tie (…)", "tie (…)"], TIE),
+    ([HOLDS, "does not hold (…)", "tie (…)"], FAILS),
+    ([HOLDS, "inconclusive (p >= 0.05)"], INCONCLUSIVE),
+    (["tie (…)", "inconclusive (…)"], INCONCLUSIVE),
+    ([], INCONCLUSIVE),
+])
+def test_combine(parts, expected):
+    assert S.combine(parts) == expected
+
+
+# --- the paired statistics ---------------------------------------------------------------------------------------
+def test_paired_on_constructed_series():
+    rng = np.random.default_rng(1)
+    seeds = np.arange(40)
+    a = pd.Series(0.003 + 0.0002 * rng.standard_normal(40), index=seeds)
+    b = a - 0.001 + 0.00005 * rng.standard_normal(40)  # b is 1 mm lower, paired
+    r = S.paired(a, b)
+    assert r.n == 40
+    assert r.diff == pytest.approx(float((b - a).mean()))
+    assert r.diff_ci[0] < r.diff < r.diff_ci[1] and r.diff_ci[1] < -0.0009 and r.diff_ci[0] > -0.0011
+    assert r.rel_diff == pytest.approx(r.diff / r.mean_a)
+    assert r.rel_diff_ci[0] == pytest.approx(-r.reduction_ci[1]) and r.rel_diff_ci[1] == pytest.approx(-r.reduction_ci[0])
+    assert r.p < 1e-6 and r.b_lower and not r.b_higher
+    assert category(S.verdict_lower(r, 1e-4)) == HOLDS
+    assert category(S.verdict_lower(r, 2e-3)) == TIE     # a 2 mm margin makes 1 mm negligible
+    assert S.paired(a, b).as_dict() == r.as_dict()        # seeded bootstrap: reproducible
+
+
+def test_paired_uses_common_seeds_only():
+    a = pd.Series([1.0, 2.0, 3.0, np.nan], index=[0, 1, 2, 3])
+    b = pd.Series([1.5, 2.5, 9.0], index=[1, 2, 5])
+    r = S.paired(a, b)
+    assert r.n == 2 and r.mean_a == pytest.approx(2.5) and r.mean_b == pytest.approx(2.0)
+    assert S.paired(a, pd.Series([1.0], index=[7])) is None
+
+
+# --- the margin --------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text, metres, relative", [
+    (None, 1e-4, 0.05), ("0.1mm", 1e-4, 0.05), ("1e-4", 1e-4, 0.05), (2e-4, 2e-4, 0.05), ("100um", 1e-4, 0.05),
+    ("0.0003 m", 3e-4, 0.05), ("5%", None, 0.05), ("12.5 %", None, 0.125), ("0", 0.0, 0.05),
+])
+def test_margin_parse(text, metres, relative):
+    m = Margin.parse(text)
+    assert (m.metres is None) == (metres is None)
+    if metres is not None:
+        assert m.metres == pytest.approx(metres)
+    assert m.relative == pytest.approx(relative)
+
+
+@pytest.mark.parametrize("bad", ["lots", "-1mm", "nan", "%", "5 furlongs", "inf"])
+def test_margin_parse_rejects(bad):
+    with pytest.raises(ValueError, match="margin"):
+        Margin.parse(bad)
+
+
+def test_margin_absolute_per_unit():
+    m = Margin()
+    assert m.absolute("m", 0.002) == pytest.approx(1e-4)           # physical, whatever the mean
+    assert m.absolute("V/s", 40.0) == pytest.approx(2.0)            # 5 % of the reference elsewhere
+    assert Margin.parse("10%").absolute("m", 0.002) == pytest.approx(2e-4)
+    assert "0.1 mm" in m.describe() and "5 %" in m.describe()
+
+
+# --- the claims, wired to the rules, on a constructed ReportData ------------------------------------------------
+def make_data(per_controller: dict, n_seeds: int = 30, scenario: str = "paper_1", extra_cols=None, seed=0):
+    """A ReportData with one job per controller and per-seed metrics ``mean + noise`` (paired by seed: a shared
+    per-seed terrain term), no files."""
+    from ddmr_cli.report.data import Job, ReportData
+
+    rng = np.random.default_rng(seed)
+    terrain = rng.standard_normal(n_seeds)
+    jobs, rows = [], []
+    for controller, metrics in per_controller.items():
+        job = Job(Path(f"/nowhere/{controller}"), {"controller": controller, "scenario": scenario,
+                                                   "status": "complete", "parameters": {}}, {})
+        job.key = controller
+        jobs.append(job)
+        for i in range(n_seeds):
+            row = {"job": job.dir.name, "seed": i, "status": "ok", "key": controller}
+            for metric, (mean, sd) in metrics.items():
+                row[metric] = mean * (1 + sd * terrain[i]) + 1e-3 * mean * rng.standard_normal()
+            rows.append(row)
+    metrics = pd.DataFrame(rows)
+    return ReportData(Path("/nowhere"), False, jobs, [], [], metrics, pd.DataFrame(columns=["job", "segment"]))
+
+
+def base(dev_mm: float, chat: float = 40.0, hf: float = 0.2, dest: float = 20.0) -> dict:
+    return {"deviation_mae": (dev_mm / 1000, 0.05), "chattering": (chat, 0.05), "hf_fraction": (hf, 0.05),
+            "d_est_mae": (dest, 0.05)}
+
+
+def by_id(results):
+    return {c.id: c for c in results}
+
+
+def test_claims_hold_when_the_data_say_so():
+    from ddmr_cli.report import verdicts as V
+
+    data = make_data({"pid": base(18.7), "smc": base(5.2), "smc_ndo": base(3.2),
+                      "smc_ndo_nno": base(1.9, chat=1.0, hf=0.005, dest=6.6)})
+    res = by_id(V.evaluate(data))
+    key = ("paper_1", "smc_ndo_nno")
+    assert category(res["ranking"].overall[key]) == HOLDS
+    assert category(res["vs_smc_ndo"].overall[key]) == HOLDS      # 1.9 / 3.2: a 41 % reduction
+    assert category(res["vs_smc"].overall[key]) == HOLDS          # 63 %
+    assert category(res["chattering"].overall[key]) == HOLDS      # 97.5 % on both metrics
+    assert category(res["estimation"].overall[key]) == HOLDS      # 67 %
+
+
+def test_claims_tie_and_fail_as_in_our_sweep():
+    """Our sweep's picture: SMC-NDO-NNO equal to SMC-NDO within 0.1 mm, chattering alike."""
+    from ddmr_cli.report import verdicts as V
+
+    data = make_data({"pid": base(6.9), "smc": base(2.93), "smc_ndo": base(1.792),
+                      "smc_ndo_nno": base(1.828, chat=40.5, hf=0.205, dest=20.3)})
+    res = by_id(V.evaluate(data))
+    key = ("paper_1", "smc_ndo_nno")
+    assert category(res["ranking"].overall[key]) == TIE           # PID > SMC > SMC-NDO hold, the last pair ties
+    pair = next(c for c in res["ranking"].checks if c.b == "smc_ndo_nno")
+    assert category(pair.verdict) == TIE and pair.margin == pytest.approx(1e-4)
+    assert category(res["vs_smc_ndo"].overall[key]) == TIE
+    assert category(res["vs_smc"].overall[key]) == FAILS          # 38 % < 60 %
+    assert category(res["chattering"].overall[key]) == TIE
+    assert category(res["estimation"].overall[key]) == TIE
+    # with no margin the same data give the strict verdicts: the NNO is significantly worse than SMC-NDO
+    strict = by_id(V.evaluate(data, Margin(0.0, 0.0)))
+    assert category(strict["ranking"].overall[key]) == FAILS
+
+
+def test_claims_use_the_steady_state_deviation_when_present():
+    from ddmr_cli.report import verdicts as V
+
+    dev = {"pid": 6.9, "smc": 2.9, "smc_ndo": 1.8, "smc_ndo_nno": 1.83}
+    ss = {"pid": 5.0, "smc": 0.40, "smc_ndo": 0.30, "smc_ndo_nno": 0.15}
+    data = make_data({c: {**base(dev[c]), "deviation_mae_ss": (ss[c] / 1000, 0.05)} for c in dev})
+    assert V.deviation_metric(data) == "deviation_mae_ss"
+    res = by_id(V.evaluate(data))
+    key = ("paper_1", "smc_ndo_nno")
+    assert {c.metric for c in res["ranking"].checks} == {"deviation_mae_ss"}
+    assert category(res["ranking"].overall[key]) == INCONCLUSIVE  # SMC-NDO -> NNO: 0.15 mm lower, CI reaching the margin
+    assert "steady-state" in res["vs_smc"].title
+    # without the column: the whole-run deviation
+    plain = make_data({c: base(dev[c]) for c in dev})
+    assert V.deviation_metric(plain) == "deviation_mae"
+
+
+def test_missing_controllers_are_listed_once():
+    from ddmr_cli.report import verdicts as V
+
+    data = make_data({"smc_ndo_nno": base(1.8)})
+    results = V.evaluate(data)
+    assert not any(c.checks for c in results)
+    md = V.markdown(data, results)
+    assert md.count("### Claims not checked") == 1
+    assert md.count("no complete smc_ndo job in paper_1") == 1
+    assert "no claim could be checked with these jobs" in md
+    none = make_data({"smc": base(3.0)})
+    md = V.markdown(none, V.evaluate(none))
+    assert md.count("the sweep has no SMC-NDO-NNO job") == 1
