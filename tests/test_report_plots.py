@@ -100,12 +100,12 @@ def test_nn_share_on_constructed_signals():
 
 
 def test_nominal_input_inverse_is_the_models():
-    from ddmr_cli.model.robot import NominalModel, Robot
+    from ddmr_cli.model.robot import NominalModel, Robot, voltage_for
 
     g_inv = S.nominal_input_inverse({"mass": 15.0, "wheel_radius": 0.03})
     a = np.array([[1.0, -2.0]])
-    expected = NominalModel.from_robot(Robot(mass=15.0, wheel_radius=0.03)).voltage_for(a, np.zeros_like(a))
-    assert np.allclose(g_inv(a), expected)
+    expected = voltage_for(NominalModel.from_robot(Robot(mass=15.0, wheel_radius=0.03)), 1.0, -2.0, 0.0, 0.0)
+    assert np.allclose(g_inv(a), [expected], rtol=1e-14)
     assert S.nominal_input_inverse({"no_such_parameter": 1.0}) is None
 
 

@@ -27,7 +27,7 @@ HEADLINE = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae", "chattering", 
 
 
 def unit_of(metric: str) -> str:
-    """The unit of a run metric (MODEL.md 7), as :data:`ddmr_cli.engine.metrics.METRICS` defines it."""
+    """The unit of a run metric (docs/model.md §7), as :data:`ddmr_cli.engine.metrics.METRICS` defines it."""
     from ddmr_cli.engine.metrics import METRICS
 
     return METRICS[metric][0]

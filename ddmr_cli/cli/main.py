@@ -125,14 +125,6 @@ def _missing_plugin(exc: BaseException, overrides: list[str]) -> str | None:
             f"pip install 'ddmr-cli[{extra}]' (or pip install -e '.[{extra}]' in a checkout)")
 
 
-def _report_takes_margin() -> bool:
-    import inspect
-
-    from ddmr_cli.report import build_report
-
-    return "margin" in inspect.signature(build_report).parameters
-
-
 def _override_value(value: str | Path) -> str:
     """A value as a Hydra override value: quoted when it has characters the override grammar would read."""
     text = str(value)
@@ -175,8 +167,12 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             raise UsageError(f"{sweep_ov}: a sweep needs --multirun (-m)")
         base = compose_config(fixed, config_name, return_hydra_config=True)
         margin = base.report.margin
-        if margin is not None and not _report_takes_margin():
-            raise UsageError(f"report.margin={margin}: this version of `ddmr report` takes no equivalence margin")
+        try:
+            from ddmr_cli.report.stats import Margin
+
+            Margin.parse(margin)
+        except ValueError as exc:
+            raise UsageError(f"report.margin={margin}: {exc}") from None
         plan = sweep.plan_jobs(overrides, base.hydra) if multirun else [{"dir": "", "overrides": overrides}]
         for job in plan:
             cfg = compose_config(job["overrides"], config_name) if multirun else base

@@ -79,7 +79,7 @@ class Report:
                  f"From the {kind} `{d.path}` by ddmr {__version__}: {len(d.jobs)} complete job(s), "
                  f"{len(d.failed)} failed, {len(d.missing)} missing. Paper: *SMC integrated with NDO and RBF "
                  f"neural network for trajectory tracking of DDMRs considering terrain factor*; its numbers are "
-                 f"shipped in `ddmr_cli/data/paper_numbers.json` (MODEL.md section 8).", "")
+                 f"shipped in `ddmr_cli/data/paper_numbers.json` (docs/model.md §8).", "")
 
     def configuration(self) -> None:
         d = self.data
@@ -104,7 +104,7 @@ class Report:
             rows.append(["seeds", ", ".join(seeds)])
         readings = list(dict.fromkeys(f"{j.controller}: {r}" for j in d.jobs
                                       if (r := nn_reading(j.summary.get("parameters") or {}))))
-        rows.append(["NN-parameter reading (MODEL.md 6)", "; ".join(readings) if readings else "no NN observer"])
+        rows.append(["NN-parameter reading (docs/model.md §6)", "; ".join(readings) if readings else "no NN observer"])
         steady = {k: _fmt_value(v) for f in flat.values() for k, v in f.items() if "steady" in k.lower()}
         rows += [[k, v] for k, v in sorted(steady.items())]
         self.add(T.md_table(["Setting", "Value"], rows), "")
@@ -171,7 +171,7 @@ class Report:
         link = self.csv("table3_parameters.csv", pd.DataFrame(rows), "Table 3: controller parameters")
         self.add("## Table 3: controller parameters", "",
                  f"From the jobs' summaries (the parameters each controller actually ran with), beside the paper's "
-                 f"Table 3 ({link}). Symbols: MODEL.md 6 (λ reaching-law gain, K switching gain, Φ boundary layer, "
+                 f"Table 3 ({link}). Symbols: docs/model.md §6 (λ reaching-law gain, K switching gain, Φ boundary layer, "
                  f"L NDO gain, n neurons, σ RBF width, γ learning rate).", "")
         self.add(T.md_table(["Controller", "Scenarios", "Ours", "Paper Table 3"],
                             [[r["label"], r["scenarios"], r["parameters"], r["paper_table3"] or "–"] for r in rows]),
@@ -188,7 +188,7 @@ class Report:
                  f"**The paper's Table 4 does not say which scenario it reports; it is compared against scenario 1 "
                  f"(`{PAPER_SCENARIO}`) only**: each of our numbers is followed by the paper's and the ratio "
                  f"ours/paper. Names map pid → PID, smc → SMC, smc_ndo → SMC+NDO, smc_ndo_nno → SMC-NDO-NN; "
-                 f"**smc_ndo_nno_text (the other reading of the NN parameters, MODEL.md 6) is compared to the same "
+                 f"**smc_ndo_nno_text (the other reading of the NN parameters, docs/model.md §6) is compared to the same "
                  f"SMC-NDO-NN row**. The paper prints e_θ in m; it is rad.", "")
         if T.has_ss(t4):
             self.add("**Steady-state columns are present** (`<metric>_ss` in the jobs' metrics.csv, the engine's "

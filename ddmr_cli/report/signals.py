@@ -38,12 +38,13 @@ def mean_abs(*arrays: np.ndarray) -> float:
 
 
 def nominal_input_inverse(robot_cfg: dict | None):
-    """``a -> g^-1 a`` of the controllers' nominal model (MODEL.md 1) for the job's robot config, or None."""
+    """``a -> g^-1 a`` of the controllers' nominal model (docs/model.md §1) for the job's robot config, or None."""
     try:
-        from ddmr_cli.model.robot import NominalModel, Robot
+        from ddmr_cli.model.robot import Robot
 
-        model = NominalModel.from_robot(Robot(**{k: float(v) for k, v in (robot_cfg or {}).items()}))
-        return model.inertia_over_gain
+        robot = Robot(**{k: float(v) for k, v in (robot_cfg or {}).items()})
+        m = robot.inertia.scaled(1.0 / robot.voltage_gain)  # J / K_u, so g^-1 a = (J / K_u) a
+        return lambda a: m.p * a + m.q * a[:, ::-1]
     except Exception:  # noqa: BLE001 - a robot config this version does not know: no voltage share
         return None
 

@@ -35,7 +35,7 @@ PER_WHEEL = "a number or a [right, left] pair"
 
 @dataclass
 class RobotConfig:
-    """Paper Table 2 plus motor constants (MODEL.md 1). Fields as :class:`ddmr_cli.model.robot.Robot`."""
+    """Paper Table 2 plus motor constants (docs/model.md §1). Fields as :class:`ddmr_cli.model.robot.Robot`."""
 
     mass: float = param(unit="kg", help="robot mass m", range="> 0", model=1, paper="Table 2")
     wheel_radius: float = param(unit="m", help="wheel radius R", range="> 0", model=1, paper="Table 2")
@@ -46,13 +46,13 @@ class RobotConfig:
     wheel_inertia: float = param(unit="kg m^2", help="moment of inertia I_w of a wheel", range="> 0", model=1,
                                  paper="Table 2")
     torque_constant: float = param(unit="N m/A", help="motor torque constant k_t, at the wheel", range="> 0",
-                                   model=1, paper="not given (MODEL.md 1 Resolution)")
+                                   model=1, paper="not given (docs/model.md §1 Resolution)")
     back_emf_constant: float = param(unit="V s/rad", help="motor back-EMF constant k_e, at the wheel", range="> 0",
-                                     model=1, paper="not given (MODEL.md 1 Resolution)")
+                                     model=1, paper="not given (docs/model.md §1 Resolution)")
     armature_resistance: float = param(unit="ohm", help="armature resistance R_a", range="> 0", model=1,
-                                       paper="not given (MODEL.md 1 Resolution)")
+                                       paper="not given (docs/model.md §1 Resolution)")
     viscous_friction: float = param(unit="N m s/rad", help="viscous friction b_v per wheel", range=">= 0", model=1,
-                                    paper="not given (MODEL.md 1 Resolution)")
+                                    paper="not given (docs/model.md §1 Resolution)")
     max_voltage: float = param(unit="V", help="supply voltage U_max: u is saturated to [-U_max, U_max]",
                                range="> 0", model=1, paper="4.1")
 
@@ -200,7 +200,7 @@ class FigureEightConfig:
 
 @dataclass
 class OuterLoopConfig:
-    """Kanayama gains (MODEL.md 3)."""
+    """Kanayama gains (docs/model.md §3)."""
 
     k_x: float = param(10.0, unit="1/s", help="Kanayama gain on the longitudinal error e_x", range=">= 0", model=3)
     k_y: float = param(25.0, unit="1/m^2", help="Kanayama gain on the lateral error e_y", range=">= 0", model=3)
