@@ -68,9 +68,9 @@ def run_job(cfg: DictConfig) -> dict:
     started = time.perf_counter()
     base = {"overrides": overrides, "config_hash": digest, "controller": None, "scenario": None}
     try:
-        validate_config(cfg)
+        sim = validate_config(cfg)
         base["controller"], base["scenario"] = _names(cfg)
-        summary = execute(cfg, out, overrides, digest)
+        summary = execute(cfg, out, overrides, digest, sim)
     except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
         error = f"{type(exc).__name__}: {exc}"
         log.error("job failed: %s", error)
@@ -92,12 +92,13 @@ def _names(cfg: DictConfig) -> tuple[str, str]:
     return controller_name(cfg.controller), str(cfg.scenario.name)
 
 
-def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None) -> dict:
+def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None,
+            sim=None) -> dict:
     """Simulate the config's seeds and write every output file into ``out``; returns the summary."""
 
     from ddmr_cli.engine.simulation import simulate
 
-    sim = build_simulation(cfg)
+    sim = sim if sim is not None else build_simulation(cfg)  # run_job passes the one it validated
     seeds = seeds_of(cfg)
     # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
     threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)

@@ -64,8 +64,7 @@ def _law_sources_digest() -> str:
 
 
 def _source_for(law_module: str) -> str:
-    template = inspect.getsource(sys.modules[_TEMPLATE_MODULE] if _TEMPLATE_MODULE in sys.modules
-                                 else importlib.import_module(_TEMPLATE_MODULE))
+    template = inspect.getsource(importlib.import_module(_TEMPLATE_MODULE))
     source, count = _LAW_IMPORT.subn(lambda m: f"from {law_module} import {m.group(1)} as {m.group(2)}", template)
     # the copy's own functions are cached on disk (its name holds the hash of every law it inlines)
     source, cached = re.subn(r"^from ddmr_cli\.compiled import law$", "from ddmr_cli.compiled import cached_law as law",

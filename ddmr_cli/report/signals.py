@@ -40,11 +40,11 @@ def mean_abs(*arrays: np.ndarray) -> float:
 def nominal_input_inverse(robot_cfg: dict | None):
     """``a -> g^-1 a`` of the controllers' nominal model (docs/model.md §1) for the job's robot config, or None."""
     try:
-        from ddmr_cli.model.robot import Robot
+        from ddmr_cli.model.robot import NominalModel, Robot
 
-        robot = Robot(**{k: float(v) for k, v in (robot_cfg or {}).items()})
-        m = robot.inertia.scaled(1.0 / robot.voltage_gain)  # J / K_u, so g^-1 a = (J / K_u) a
-        return lambda a: m.p * a + m.q * a[:, ::-1]
+        n = NominalModel.from_robot(Robot(**{k: float(v) for k, v in (robot_cfg or {}).items()}))
+        # g^-1 a = (J / K_u) a, the acceleration part of voltage_for, over a (steps, 2) array
+        return lambda a: n.j_over_ku_p * a + n.j_over_ku_q * a[:, ::-1]
     except Exception:  # noqa: BLE001 - a robot config this version does not know: no voltage share
         return None
 
