@@ -29,7 +29,8 @@ __version__ = "0.1.0"
 
 #: public name -> module that defines it; imported on first use (PEP 562), so ``ddmr --help`` starts fast
 _EXPORTS = {
-    "PID": "control", "SMC": "control", "NonlinearDisturbanceObserver": "control",
+    "PID": "control", "SMC": "control", "AdaptiveSMC": "control", "SuperTwisting": "control", "ADRC": "control",
+    "NonlinearDisturbanceObserver": "control",
     "OpenLoop": "control", "RBFNetworkObserver": "control", "WheelController": "control",
     "ConfigError": "errors", "DDMRError": "errors",
     "Kanayama": "control.outer_loop", 
@@ -58,8 +59,8 @@ def __dir__():
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-    from ddmr_cli.control import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver,
-                              WheelController)
+    from ddmr_cli.control import (ADRC, PID, SMC, AdaptiveSMC, NonlinearDisturbanceObserver, OpenLoop,
+                                  RBFNetworkObserver, SuperTwisting, WheelController)
     from ddmr_cli.errors import ConfigError, DDMRError
     from ddmr_cli.control.outer_loop import Kanayama
     from ddmr_cli.cli.config.presets import (paper_config, paper_controller, paper_robot, paper_scenario,
@@ -100,7 +101,8 @@ def run_config(cfg, progress=None) -> "SimulationResult":
 __all__ = [
     "Simulation", "simulate", "SimulationResult", "Robot", "NominalModel", "Terrain", "TerrainZone", "Scenario",
     "Phase", "DampingUncertainty", "StraightLine", "Circle", "FigureEight", "Kanayama", "WheelController", "PID",
-    "SMC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver", "paper_terrain", "paper_scenario",
+    "SMC", "AdaptiveSMC", "SuperTwisting", "ADRC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
+    "paper_terrain", "paper_scenario",
     "paper_config", "paper_simulation", "paper_controller", "paper_trajectory", "paper_robot",
     "compose_config", "run_config", "load_sweep", "ConfigError", "DDMRError",
 ]

@@ -75,8 +75,9 @@ def start(p, st, w0_R, w0_L):
 
 
 @law
-def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
-    """(17): ``u = g^-1 (w_d' - f(w) + linear + K sw(s/Phi) - d_hat)`` per wheel."""
+def sliding_command(p, st, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L, gain_R, gain_L):
+    """(17) with the switching gains ``K`` given per wheel [rad/s^2] (constant here, adapted in
+    :mod:`ddmr_cli.control.adaptive_smc`): ``u = g^-1 (w_d' - f(w) + linear + K sw(s/Phi) - d_hat)``."""
     s_R, linear_R = surface(wd_R - w_R, st["error_integral"][0], p.lam[0], p.integral_surface)
     s_L, linear_L = surface(wd_L - w_L, st["error_integral"][1], p.lam[1], p.integral_surface)
     dndo_R = dndo_L = dnn_R = dnn_L = 0.0
@@ -84,14 +85,20 @@ def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
         dndo_R, dndo_L = ndo.estimate(p.ndo, st["z"], w_R, w_L)
     if p.has_nn:
         dnn_R, dnn_L = rbf.estimate(p.nn, st["weights"], st["phi"], w_R, w_L)
-    a_R = wdd_R + linear_R + p.switching_gain[0] * switching(s_R, p.boundary_layer, p.switching) - (dndo_R + dnn_R)
-    a_L = wdd_L + linear_L + p.switching_gain[1] * switching(s_L, p.boundary_layer, p.switching) - (dndo_L + dnn_L)
+    a_R = wdd_R + linear_R + gain_R * switching(s_R, p.boundary_layer, p.switching) - (dndo_R + dnn_R)
+    a_L = wdd_L + linear_L + gain_L * switching(s_L, p.boundary_layer, p.switching) - (dndo_L + dnn_L)
     u_R, u_L = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
     st["s"][0] = s_R
     st["s"][1] = s_L
     st["d_hat_ndo"][0] = dndo_R
     st["d_hat_ndo"][1] = dndo_L
     return u_R, u_L, s_R, s_L, dndo_R, dndo_L, dnn_R, dnn_L
+
+
+@law
+def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
+    """(17): ``u = g^-1 (w_d' - f(w) + linear + K sw(s/Phi) - d_hat)`` per wheel, K the configured gains."""
+    return sliding_command(p, st, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L, p.switching_gain[0], p.switching_gain[1])
 
 
 @law
@@ -153,11 +160,19 @@ class SMC(WheelController):
         return [("error_integral", "f8", 2), ("z", "f8", 2), ("weights", "f8", (2, n)), ("phi", "f8", n),
                 ("s", "f8", 2), ("d_hat_ndo", "f8", 2)]
 
+    @property
+    def largest_gain(self) -> float:
+        """The largest switching gain K the law can apply [rad/s^2] (the configured one here)."""
+        return max(self.switching_gain)
+
+    #: the config key of :attr:`largest_gain`, for the step-bound message
+    largest_gain_key = "switching_gain"
+
     def step_rates(self, nominal: NominalModel) -> list[StepRate]:
         """The sliding variable's fastest closed-loop rate is ``lambda + K / Phi`` (inside the boundary layer),
         and the NDO's error decays at ``L``."""
-        rates = [StepRate("controller.lam + switching_gain/boundary_layer",
-                          max(self.lam) + max(self.switching_gain) / self.boundary_layer)]
+        rates = [StepRate(f"controller.lam + {self.largest_gain_key}/boundary_layer",
+                          max(self.lam) + self.largest_gain / self.boundary_layer)]
         return rates + (self.ndo.step_rates() if self.ndo is not None else [])
 
     def parameters(self):

@@ -167,6 +167,45 @@ class SMCConfig:
 
 
 @dataclass
+class AdaptiveSMCConfig(SMCConfig):
+    _target_: str = param("ddmr_cli.control.AdaptiveSMC", unit="", help=TARGET_HELP, model=6)
+    switching_gain: Any = param(unit="rad/s^2", help="initial switching gain K(0) of the adapted K(t)",
+                                range=f"in [gain_min, gain_max]; {PER_WHEEL}", model=6)
+    adaptation_rate: Any = param(unit="1/s^2", help="gamma of K' = gamma |s| - sigma K (outside the dead zone)",
+                                 range=f"> 0; {PER_WHEEL}", model=6)
+    leakage: float = param(unit="1/s", help="sigma of K' = gamma |s| - sigma K: K relaxes towards gamma |s| / sigma",
+                           range=">= 0", model=6)
+    dead_zone: float = param(unit="rad/s", help="eps: K is held while |s| < eps", range=">= 0", model=6)
+    gain_min: float = param(unit="rad/s^2", help="K_min: lower clip of K", range=">= 0", model=6)
+    gain_max: float = param(unit="rad/s^2", help="K_max: upper clip of K",
+                            range=">= controller.gain_min; dt * (lam + gain_max/boundary_layer) below the "
+                            "integrator's stability limit", model=6)
+
+
+@dataclass
+class STAConfig:
+    _target_: str = param("ddmr_cli.control.SuperTwisting", unit="", help=TARGET_HELP, model=6)
+    name: str = param(unit="", help="label of the controller in tables and figures", model=6)
+    k1: Any = param(unit="(rad/s)^(1/2)/s", help="super-twisting gain k1 of k1 |s|^(1/2) sign(s) (s = w_d - w)",
+                    range=f"> 0; {PER_WHEEL}; k1^2 >= 4 L (k2 + L) / (k2 - L) for a derivative bound L "
+                    "(docs/model.md §6)", model=6)
+    k2: Any = param(unit="rad/s^3", help="super-twisting gain k2 of v' = k2 sign(s)",
+                    range=f"> 0; {PER_WHEEL}; k2 > L, the bound on |(d - d_hat)'|", model=6)
+    ndo: Optional[NDOConfig] = param(None, unit="", help="nonlinear disturbance observer (null: none)", model=6,
+                                     paper="3.2")
+
+
+@dataclass
+class ADRCConfig:
+    _target_: str = param("ddmr_cli.control.ADRC", unit="", help=TARGET_HELP, model=6)
+    name: str = param(unit="", help="label of the controller in tables and figures", model=6)
+    bandwidth: float = param(unit="1/s", help="controller bandwidth w_c: u = (w_c (w_d - z1) + w_d' - z2) / b0",
+                             range="> 0; dt * w_c below the integrator's stability limit", model=6)
+    observer_bandwidth: float = param(unit="1/s", help="ESO bandwidth w_o (double observer pole at -w_o)",
+                                      range="> 0; dt * w_o < 2 (Euler ESO); 3-10 x bandwidth advised", model=6)
+
+
+@dataclass
 class OpenLoopConfig:
     _target_: str = param("ddmr_cli.control.OpenLoop", unit="", help=TARGET_HELP, model=6)
     voltage: Any = param(unit="V", help="constant voltage, no feedback (plant checks)",
@@ -290,6 +329,7 @@ def register_configs() -> None:
     for name, node in [
         ("robot", RobotConfig), ("terrain", TerrainConfig), ("scenario", ScenarioConfig),
         ("controller_pid", PIDConfig), ("controller_smc", SMCConfig), ("controller_open_loop", OpenLoopConfig),
+        ("controller_adaptive_smc", AdaptiveSMCConfig), ("controller_sta", STAConfig), ("controller_adrc", ADRCConfig),
         ("trajectory_line", LineConfig), ("trajectory_circle", CircleConfig),
         ("trajectory_figure_eight", FigureEightConfig),
     ]:

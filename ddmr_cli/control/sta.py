@@ -1,0 +1,111 @@
+"""Super-twisting sliding-mode wheel-speed controller (Levant 1993), with the optional NDO (docs/model.md §6,
+"Super-twisting").
+
+In the sign convention of the paper's (17), on ``s = e = w_d - w`` (10):
+``u = g^-1 (w_d' - f(w) + k1 |s|^(1/2) sign(s) + v - d_hat)``, ``v' = k2 sign(s)``, ``v(0) = 0``, so that
+``s' = -k1 |s|^(1/2) sign(s) - v - (d - d_hat)``: with ``z = -(v + d - d_hat)`` the standard super-twisting form
+``s' = -k1 |s|^(1/2) sign(s) + z``, ``z' = -k2 sign(s) - (d - d_hat)'``. ``v`` is advanced by explicit Euler;
+``u`` is continuous in time (the discontinuity is integrated), unlike sign-SMC's.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import NamedTuple
+
+from ddmr_cli.checks import compact, per_wheel, positive
+from ddmr_cli.compiled import law
+from ddmr_cli.control import ndo
+from ddmr_cli.control.base import StepRate, WheelController
+from ddmr_cli.model.robot import NominalModel, sign, voltage_for
+
+
+class STAParameters(NamedTuple):
+    k1: tuple  # per wheel [(rad/s)^(1/2) / s]
+    k2: tuple  # per wheel [rad/s^3]
+    nominal: NominalModel
+    dt: float  # [s]
+    has_ndo: bool
+    ndo: ndo.NDOParameters
+
+
+@law
+def super_twisting(s, k1, v):
+    """The super-twisting term ``k1 |s|^(1/2) sign(s) + v`` [rad/s^2]."""
+    return k1 * math.sqrt(abs(s)) * sign(s) + v
+
+
+@law
+def start(p, st, w0_R, w0_L):
+    """``v(0) = 0``; the NDO starts at ``d_hat(0) = 0``."""
+    st["v"][0] = 0.0
+    st["v"][1] = 0.0
+    if p.has_ndo:
+        ndo.start(p.ndo, st["z"], w0_R, w0_L)
+
+
+@law
+def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
+    """``u = g^-1 (w_d' - f(w) + k1 |s|^(1/2) sign(s) + v - d_hat)`` per wheel, ``s = w_d - w``."""
+    s_R, s_L = wd_R - w_R, wd_L - w_L
+    dndo_R = dndo_L = 0.0
+    if p.has_ndo:
+        dndo_R, dndo_L = ndo.estimate(p.ndo, st["z"], w_R, w_L)
+    st["d_hat_ndo"][0] = dndo_R
+    st["d_hat_ndo"][1] = dndo_L
+    a_R = wdd_R + super_twisting(s_R, p.k1[0], st["v"][0]) - dndo_R
+    a_L = wdd_L + super_twisting(s_L, p.k1[1], st["v"][1]) - dndo_L
+    u_R, u_L = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
+    return u_R, u_L, s_R, s_L, dndo_R, dndo_L, 0.0, 0.0
+
+
+@law
+def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
+    """One Euler step of ``v' = k2 sign(s)`` and of the NDO (22)."""
+    st["v"][0] += (p.dt * p.k2[0]) * sign(wd_R - w_R)
+    st["v"][1] += (p.dt * p.k2[1]) * sign(wd_L - w_L)
+    if p.has_ndo:
+        ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["d_hat_ndo"][0], st["d_hat_ndo"][1], w_R, w_L, u_R, u_L)
+
+
+class SuperTwisting(WheelController):
+    """Super-twisting SMC on ``s = w_d - w`` (docs/model.md §6).
+
+    Parameters
+    ----------
+    k1 : float or (float, float)
+        Gain of ``|s|^(1/2) sign(s)`` per wheel [(rad/s)^(1/2)/s].
+    k2 : float or (float, float)
+        Gain of the integrated ``sign(s)`` per wheel [rad/s^3].
+    ndo : NonlinearDisturbanceObserver, optional
+        The NDO of the paper's 3.2 (``sta_ndo``); None for none.
+    name : str
+        Label in tables and plots.
+    """
+
+    laws = sys.modules[__name__]
+
+    def __init__(self, *, k1, k2, ndo: "ndo.NonlinearDisturbanceObserver | None" = None, name: str = "sta") -> None:
+        self.k1 = per_wheel("controller.k1", k1, positive)
+        self.k2 = per_wheel("controller.k2", k2, positive)
+        self.ndo = ndo
+        self.name = str(name)
+
+    def law_parameters(self, nominal: NominalModel, dt: float) -> STAParameters:
+        ndo_params = self.ndo.law_parameters() if self.ndo is not None else ndo.NDOParameters((0.0, 0.0))
+        return STAParameters(self.k1, self.k2, nominal, float(dt), self.ndo is not None, ndo_params)
+
+    def state_fields(self):
+        return [("v", "f8", 2), ("z", "f8", 2), ("d_hat_ndo", "f8", 2)]
+
+    def step_rates(self, nominal: NominalModel) -> list[StepRate]:
+        """Only the NDO's rate L: the super-twisting loop is homogeneous, with no linear rate for ``dt`` to resolve
+        (sampled, it keeps ``|s| = O(dt^2)`` instead of converging exactly; docs/model.md §6)."""
+        return self.ndo.step_rates() if self.ndo is not None else []
+
+    def parameters(self):
+        params = {"k1": compact(self.k1), "k2": compact(self.k2)}
+        if self.ndo is not None:
+            params.update(self.ndo.parameters())
+        return params
