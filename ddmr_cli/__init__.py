@@ -40,7 +40,8 @@ _EXPORTS = {
     "SimulationResult": "engine.results", "NominalModel": "model.robot", "Robot": "model.robot",
     "DampingUncertainty": "model.scenario", "Phase": "model.scenario", "Scenario": "model.scenario",
     "Simulation": "engine.simulation", "simulate": "engine.simulation", "Terrain": "model.terrain", "TerrainZone": "model.terrain",
-    "Circle": "model.trajectory", "FigureEight": "model.trajectory", "StraightLine": "model.trajectory",
+    "Circle": "model.trajectory", "FigureEight": "model.trajectory", "Sinusoid": "model.trajectory",
+    "StraightLine": "model.trajectory",
 }
 
 
@@ -70,7 +71,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
     from ddmr_cli.engine.simulation import Simulation, simulate
     from ddmr_cli.model.terrain import Terrain, TerrainZone
-    from ddmr_cli.model.trajectory import Circle, FigureEight, StraightLine
+    from ddmr_cli.model.trajectory import Circle, FigureEight, Sinusoid, StraightLine
 
 
 def compose_config(overrides=(), config_name: str = "config"):
@@ -100,8 +101,8 @@ def run_config(cfg, progress=None) -> "SimulationResult":
 
 __all__ = [
     "Simulation", "simulate", "SimulationResult", "Robot", "NominalModel", "Terrain", "TerrainZone", "Scenario",
-    "Phase", "DampingUncertainty", "StraightLine", "Circle", "FigureEight", "Kanayama", "WheelController", "PID",
-    "SMC", "AdaptiveSMC", "SuperTwisting", "ADRC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
+    "Phase", "DampingUncertainty", "StraightLine", "Circle", "FigureEight", "Sinusoid", "Kanayama", "WheelController",
+    "PID", "SMC", "AdaptiveSMC", "SuperTwisting", "ADRC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
     "paper_terrain", "paper_scenario",
     "paper_config", "paper_simulation", "paper_controller", "paper_trajectory", "paper_robot",
     "compose_config", "run_config", "load_sweep", "ConfigError", "DDMRError",

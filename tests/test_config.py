@@ -68,6 +68,8 @@ def _leaf_fields(node_type, path=""):
                                        schema.PhaseConfig, schema.ScenarioConfig, schema.NDOConfig, schema.NNConfig,
                                        schema.PIDConfig, schema.SMCConfig, schema.OpenLoopConfig, schema.LineConfig,
                                        schema.CircleConfig, schema.FigureEightConfig, schema.OuterLoopConfig,
+                                       schema.STAConfig, schema.ADRCConfig, schema.AdaptiveSMCConfig,
+                                       schema.SinusoidConfig,
                                        schema.SimulationConfig, schema.RunConfig, schema.ReportConfig])
 def test_defaults_live_only_in_the_yaml(node_type):
     """The schema marks every value required (MISSING); only a class's _target_ and an absent observer (None)
@@ -90,7 +92,8 @@ def test_every_option_of_every_group_gives_every_value(group):
 
 @pytest.mark.parametrize("cls", ["Robot", "SMC", "PID", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
                                  "OpenLoop", "Simulation", "Terrain", "Scenario", "StraightLine", "Circle",
-                                 "FigureEight", "Kanayama", "DampingUncertainty"])
+                                 "FigureEight", "Kanayama", "DampingUncertainty", "SuperTwisting", "ADRC",
+                                 "AdaptiveSMC", "Sinusoid"])
 def test_model_classes_have_no_numeric_defaults(cls):
     import inspect
 

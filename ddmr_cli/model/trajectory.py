@@ -78,3 +78,52 @@ class FigureEight:
         v = math.hypot(dx, dy)
         omega = (dx * ddy - dy * ddx) / (v * v) if v > 0 else 0.0
         return x, y, math.atan2(dy, dx), v, omega
+
+
+@dataclass(frozen=True)
+class Sinusoid:
+    """A lane-change path ``y = A sin(2 pi x / lambda)`` driven at constant path speed ``v`` from the origin.
+
+    The arc length to ``x`` is an incomplete elliptic integral of the second kind, with ``a = A k``,
+    ``k = 2 pi / lambda``: ``s(x) = sqrt(1 + a^2) / k E(k x | a^2 / (1 + a^2))``; ``x(t)`` solves
+    ``s(x) = v t`` by Newton's method (``s' = sqrt(1 + y'^2) >= 1``, converged to 1e-12 m). Then
+    ``theta_r = atan(y'(x))``, ``v_r = v`` and ``omega_r = v kappa(x)``, ``kappa = y'' / (1 + y'^2)^(3/2)``
+    (exact, not differenced; docs/model.md §3).
+    """
+
+    amplitude: float
+    wavelength: float
+    speed: float
+
+    def __post_init__(self) -> None:
+        finite("trajectory.amplitude", self.amplitude)
+        positive("trajectory.wavelength", self.wavelength)
+        positive("trajectory.speed", self.speed)
+
+    def arc_length(self, x: float) -> float:
+        """``s(x)``, the path length from the origin to abscissa ``x`` [m]."""
+        from scipy.special import ellipeinc
+
+        k = 2.0 * math.pi / self.wavelength
+        a2 = (self.amplitude * k) ** 2
+        return math.sqrt(1.0 + a2) / k * float(ellipeinc(k * x, a2 / (1.0 + a2)))
+
+    def abscissa(self, t: float) -> float:
+        """``x(t)``: the root of ``s(x) = v t`` (Newton from ``x = v t / s'_mean``, at most 50 steps)."""
+        target = self.speed * t
+        x = target * self.wavelength / self.arc_length(self.wavelength) if target else 0.0
+        k = 2.0 * math.pi / self.wavelength
+        for _ in range(50):
+            step = (self.arc_length(x) - target) / math.hypot(1.0, self.amplitude * k * math.cos(k * x))
+            x -= step
+            if abs(step) <= 1e-12:
+                break
+        return x
+
+    def reference(self, t: float) -> tuple[float, float, float, float, float]:
+        k = 2.0 * math.pi / self.wavelength
+        x = self.abscissa(t)
+        slope = self.amplitude * k * math.cos(k * x)
+        bend = -self.amplitude * k * k * math.sin(k * x)
+        curvature = bend / (1.0 + slope * slope) ** 1.5
+        return x, self.amplitude * math.sin(k * x), math.atan(slope), self.speed, self.speed * curvature

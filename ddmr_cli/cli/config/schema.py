@@ -238,6 +238,15 @@ class FigureEightConfig:
 
 
 @dataclass
+class SinusoidConfig:
+    _target_: str = param("ddmr_cli.model.trajectory.Sinusoid", unit="", help=TARGET_HELP, model=3)
+    amplitude: float = param(unit="m", help="lateral amplitude A of the lane change y = A sin(2 pi x / lambda)",
+                             range="finite", model=3)
+    wavelength: float = param(unit="m", help="wavelength lambda of the lane change", range="> 0", model=3)
+    speed: float = param(unit="m/s", help="constant speed v_r along the path", range="> 0", model=3)
+
+
+@dataclass
 class OuterLoopConfig:
     """Kanayama gains (docs/model.md §3)."""
 
@@ -331,7 +340,7 @@ def register_configs() -> None:
         ("controller_pid", PIDConfig), ("controller_smc", SMCConfig), ("controller_open_loop", OpenLoopConfig),
         ("controller_adaptive_smc", AdaptiveSMCConfig), ("controller_sta", STAConfig), ("controller_adrc", ADRCConfig),
         ("trajectory_line", LineConfig), ("trajectory_circle", CircleConfig),
-        ("trajectory_figure_eight", FigureEightConfig),
+        ("trajectory_figure_eight", FigureEightConfig), ("trajectory_sinusoid", SinusoidConfig),
     ]:
         # root-level names (not groups), so `ddmr run --help` lists only the real options
         cs.store(name=f"schema_{name}", node=node)
