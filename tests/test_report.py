@@ -178,7 +178,8 @@ def test_verdicts_table(mini_report):
     # the percent difference is the difference relative to the reference's mean
     assert np.allclose(v["diff_pct"], 100 * v["diff"] / v["mean_a"])
     dev = v[v["metric"] == "deviation_mae_ss"]  # the jobs have steady-state columns: the verdicts use them
-    assert not dev.empty and np.allclose(dev["margin"], 1e-4)  # 0.1 mm on the deviation
+    # 0.1 mm on the deviation, or 5 % of the reference's mean where that is smaller
+    assert not dev.empty and np.allclose(dev["margin"], np.minimum(1e-4, 0.05 * dev["mean_a"].abs()))
     chat = v[v["metric"] == "chattering"]
     assert np.allclose(chat["margin"], 0.05 * chat["mean_a"].abs())  # 5 % of the reference elsewhere
     assert (v["n_pairs"] == N_RUNS).all()
