@@ -440,6 +440,7 @@ def test_bands_are_drawn_when_present(mini_sweep, tmp_path):
     shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report"))
     with_bands = sweep / "controller=smc,scenario=paper_1"
     _write_bands(with_bands, read_series(with_bands / "series.npz")[0])
+    (sweep / "controller=pid,scenario=paper_1" / "bands.npz").unlink()  # a job written without bands
     data = D.load(sweep)
     sf = ScenarioFigures(data, "paper_1", tmp_path / "figs", StyleBook(CONTROLLERS))
     smc, pid = (data.job("paper_1", k) for k in ("smc", "pid"))
@@ -473,6 +474,31 @@ def test_bands_fall_back_when_absent_or_malformed(mini_sweep, tmp_path):
     bands = D.read_bands(job_dir / "bands.npz")
     assert "u_right" in bands and "s_right" not in bands
     assert np.allclose(bands.p95["u_right"] - bands.p05["u_right"], 2.0)
+    # on a finer series axis the band is interpolated; a grid that does not span the series is refused
+    fine = bands.on(np.linspace(0, 1, 9))
+    assert len(fine.t) == 9 and np.allclose(fine.mean["u_right"], np.linspace(0, 1, 9))
+    assert bands.on(np.linspace(0, 2, 9)) is None
+
+
+def test_engine_bands_match_the_kept_seeds(mini_sweep):
+    """bands.npz as the engine writes it, on its grid of every few steps: with 2 seeds a and b (seed 0 kept),
+    mean = (a + b) / 2, p05 = lo + 0.05 (hi - lo), p95 = lo + 0.95 (hi - lo) (numpy's linear percentiles)."""
+    from ddmr_cli.cli.io import read_series
+    from ddmr_cli.report import data as D
+
+    job = mini_sweep / "controller=smc_ndo,scenario=paper_2"
+    bands = D.read_bands(job / "bands.npz")
+    seed0 = read_series(job / "series.npz")[0]
+    assert len(bands.t) < len(seed0["t"]) and bands.on(seed0["t"]) is not None
+    grid = np.searchsorted(seed0["t"], bands.t - 1e-12)
+    assert np.allclose(seed0["t"][grid], bands.t)
+    for channel in ("deviation", "e_y", "u_right"):
+        a = seed0[channel][grid]
+        b = 2 * bands.mean[channel] - a
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        scale = np.max(np.abs(a))
+        np.testing.assert_allclose(bands.p05[channel], lo + 0.05 * (hi - lo), atol=1e-9 * scale)
+        np.testing.assert_allclose(bands.p95[channel], lo + 0.95 * (hi - lo), atol=1e-9 * scale)
 
 
 def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path):
