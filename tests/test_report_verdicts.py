@@ -261,3 +261,24 @@ def test_missing_controllers_are_listed_once():
     none = make_data({"smc": base(3.0)})
     md = V.markdown(none, V.evaluate(none))
     assert md.count("the sweep has no SMC-NDO-NNO job") == 1
+
+
+def test_every_other_controller_is_a_baseline_judged_against_smc_ndo_nno():
+    """Controllers outside the paper's claims (super-twisting, ADRC, ...) each get SMC-NDO-NNO compared with them
+    on the deviation and on chattering, by the ranking pairs' rule: here STA tracks better (the claim that
+    SMC-NDO-NNO is lower does not hold) but chatters more (holds), and ADRC ties on deviation."""
+    from ddmr_cli.report import verdicts as V
+
+    data = make_data({"smc_ndo": base(1.8), "smc_ndo_nno": base(1.83), "sta_ndo": base(1.5, chat=200.0),
+                      "adrc": base(1.83)})
+    assert V.baselines(data) == ["sta_ndo", "adrc"]
+    res = by_id(V.evaluate(data))
+    key = ("paper_1", "smc_ndo_nno")
+    assert category(res["sta_ndo:deviation"].overall[key]) == FAILS
+    assert category(res["sta_ndo:chattering"].overall[key]) == HOLDS
+    assert category(res["adrc:deviation"].overall[key]) == TIE
+    chk = res["sta_ndo:deviation"].checks[0]
+    assert (chk.a, chk.b, chk.metric) == ("sta_ndo", "smc_ndo_nno", "deviation_mae")
+    assert "STA-NDO" in res["sta_ndo:deviation"].title and "not a paper claim" in res["sta_ndo:deviation"].title
+    md = V.markdown(data, V.evaluate(data))
+    assert "SMC-NDO-NNO less chattering than STA-NDO" in md

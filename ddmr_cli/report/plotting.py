@@ -37,7 +37,8 @@ REFERENCE_STYLE = {"color": "0.45", "ls": (0, (5, 2.5)), "lw": 1.3}
 
 CONTROLLER_LABELS = {"pid": "PID", "smc": "SMC", "smc_ndo": "SMC-NDO", "smc_ndo_nno": "SMC-NDO-NNO",
                      "smc_ndo_nno_text": "SMC-NDO-NNO (text reading)", "smc_nno": "SMC-NNO",
-                     "open_loop": "open loop"}
+                     "open_loop": "open loop", "sta": "STA", "sta_ndo": "STA-NDO", "adrc": "ADRC",
+                     "adaptive_smc": "Adaptive SMC", "adaptive_smc_ndo": "Adaptive SMC-NDO"}
 
 DPI = 110
 MAX_POINTS = 5000
@@ -68,6 +69,12 @@ KNOWN_STYLES = {
     "smc_ndo_nno_text": Style(OKABE_ITO["reddish_purple"], "long", width=1.3),
     "smc_nno": Style(OKABE_ITO["sky_blue"], "dashdotdot"),
     "open_loop": Style(OKABE_ITO["orange"], "sparse"),
+    # the baselines of issue 15: a (colour, dash) pair no other built-in controller has, plus a marker
+    "sta": Style(OKABE_ITO["orange"], "dotted", "v"),
+    "sta_ndo": Style(OKABE_ITO["orange"], "dashdot", "^", width=1.3),
+    "adrc": Style(OKABE_ITO["reddish_purple"], "dashed", "s", width=1.3),
+    "adaptive_smc": Style(OKABE_ITO["blue"], "dashdotdot", "o"),
+    "adaptive_smc_ndo": Style(OKABE_ITO["sky_blue"], "long", "D", width=1.3),
 }
 
 
