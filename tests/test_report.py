@@ -520,7 +520,8 @@ def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path)
 
 
 def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
-    """The paper's line: y against x; a circle: the lateral error against the distance travelled."""
+    """The paper's line: y against x; a circle: the lateral error against the distance travelled. A job on another
+    reference than the line is reported under the scenario <scenario>@<trajectory>."""
     from ddmr_cli.report import data as D
     from ddmr_cli.report.figures import ScenarioFigures
     from ddmr_cli.report.plotting import StyleBook, pyplot
@@ -528,8 +529,9 @@ def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
     circle = tmp_path / "circle"
     write_job(circle, "smc_ndo", "paper_1", extra=("trajectory=circle",))
     captions = {}
-    for name, path in (("line", mini_sweep), ("circle", circle)):
-        sf = ScenarioFigures(D.load(path), "paper_1", tmp_path / name, StyleBook(CONTROLLERS))
+    assert D.load(circle).scenarios == ["paper_1@circle"]
+    for name, path, scenario in (("line", mini_sweep, "paper_1"), ("circle", circle, "paper_1@circle")):
+        sf = ScenarioFigures(D.load(path), scenario, tmp_path / name, StyleBook(CONTROLLERS))
         sf.fig_trajectory(pyplot())
         captions[name] = sf.figures[-1].caption
         assert sf.figures[-1].path.is_file()

@@ -25,6 +25,9 @@ if TYPE_CHECKING:
 CONTROLLER_ORDER = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text", "smc_nno", "open_loop")
 #: The scenario the paper's Table 4 is compared against (the paper does not say which one it is).
 PAPER_SCENARIO = "paper_1"
+#: The paper's reference. A job on another one (``trajectory=circle``) is reported under the scenario
+#: ``<scenario>@<trajectory>`` (``paper_1@circle``): the reference is part of the scenario axis.
+PAPER_TRAJECTORY = "line"
 #: Override keys that do not tell two jobs apart (launcher, output dirs, plotting).
 _IGNORED_KEYS = ("experiment", "launcher", "cluster", "run.plots", "run.progress")
 
@@ -71,8 +74,16 @@ class Job:
         return str(self.summary.get("controller"))
 
     @property
+    def trajectory(self) -> str:
+        """The trajectory option the job's overrides chose (the default, line, when none did)."""
+        chosen = [o.partition("=")[2] for o in self.overrides if _override_key(o) == "trajectory"]
+        return chosen[-1] if chosen else PAPER_TRAJECTORY
+
+    @property
     def scenario(self) -> str:
-        return str(self.summary.get("scenario"))
+        """The scenario's name, ``@<trajectory>`` appended on a reference other than the paper's line."""
+        name = str(self.summary.get("scenario"))
+        return name if self.trajectory == PAPER_TRAJECTORY else f"{name}@{self.trajectory}"
 
     @property
     def label(self) -> str:
@@ -249,7 +260,7 @@ def _assign_keys(jobs: list[Job]) -> None:
     """A job's key is its controller, plus the overrides that set it apart when a controller has several jobs
     on one scenario (e.g. a gain sweep)."""
     per_job = {id(j): [o for o in j.overrides if not _ignored(o)
-                       and _override_key(o) not in ("controller", "scenario")] for j in jobs}
+                       and _override_key(o) not in ("controller", "scenario", "trajectory")] for j in jobs}
     common = set.intersection(*(set(v) for v in per_job.values())) if per_job else set()
     groups: dict[tuple[str, str], list[Job]] = {}
     for j in jobs:
