@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     import pandas as pd
 
 #: Controllers in the paper's order (then any other, alphabetically).
-CONTROLLER_ORDER = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text", "smc_nno", "open_loop")
+CONTROLLER_ORDER = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text", "smc_nno", "sta", "sta_ndo", "adrc",
+                    "adaptive_smc", "adaptive_smc_ndo", "open_loop")
 #: The scenario the paper's Table 4 is compared against (the paper does not say which one it is).
 PAPER_SCENARIO = "paper_1"
 #: The paper's reference. A job on another one (``trajectory=circle``) is reported under the scenario

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ddmr_cli.engine.metrics import METRICS
-from ddmr_cli.report.data import ReportData, paper_numbers
+from ddmr_cli.report.data import ReportData, controller_rank, paper_numbers
 from ddmr_cli.report.stats import (ALPHA, BOOT_SEED, FAILS, HOLDS, INCONCLUSIVE, MARGIN_WHY, MIN_PAIRS, N_BOOT, TIE,
                                    Margin, Paired, category, combine, paired, verdict_about, verdict_lower,
                                    verdict_over)
@@ -22,7 +22,7 @@ ABOUT_BAND = 0.10
 #: that SMC-NDO-NNO is compared against (super-twisting, ADRC, adaptive SMC, ...; not a claim of the paper).
 PAPER_CONTROLLERS = RANKING + NNO_READINGS + ("smc_nno", "open_loop")
 #: What SMC-NDO-NNO is compared with a baseline on (the deviation metric is filled in per report).
-BASELINE_METRICS = (("deviation", "lower"), ("chattering", "less chattering than"))
+BASELINE_METRICS = (("deviation", "lower {dev} than"), ("chattering", "less chattering (total variation of u) than"))
 #: Suffix of the steady-state metric columns (e.g. ``deviation_mae_ss``), used for the verdicts when present.
 SS = "_ss"
 
@@ -146,8 +146,8 @@ def claims(data: ReportData) -> list[ClaimResult]:
 
 
 def baselines(data: ReportData) -> list[str]:
-    """The report's controllers outside the paper's claims, in job order."""
-    return [c for c in dict.fromkeys(j.controller for j in data.jobs) if c not in PAPER_CONTROLLERS]
+    """The report's controllers outside the paper's claims, in the report's controller order."""
+    return sorted({j.controller for j in data.jobs} - set(PAPER_CONTROLLERS), key=controller_rank)
 
 
 def baseline_claims(data: ReportData) -> list[ClaimResult]:
@@ -157,8 +157,7 @@ def baseline_claims(data: ReportData) -> list[ClaimResult]:
     for ctrl in baselines(data):
         label = next(j.label for j in data.jobs if j.controller == ctrl)
         for metric, what in BASELINE_METRICS:
-            name = dev if metric == "deviation" else "total variation of u (V/s)"
-            out.append(ClaimResult(f"{ctrl}:{metric}", f"SMC-NDO-NNO {what} {label} ({name}; not a paper claim)",
+            out.append(ClaimResult(f"{ctrl}:{metric}", f"SMC-NDO-NNO: {what.format(dev=dev)} {label} (not a paper claim)",
                                    "as each ranking pair: holds when SMC-NDO-NNO's value is significantly lower and "
                                    "the whole CI of the difference lies beyond the margin; tie inside the margin; "
                                    "does not hold when it is significantly higher"))
