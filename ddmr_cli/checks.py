@@ -52,6 +52,13 @@ def integer(key: str, value: Any, minimum: int) -> int:
     return int(value)
 
 
+def boolean(key: str, value: Any) -> bool:
+    """true or false (not a number or a string)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(key, value, "must be true or false")
+    return bool(value)
+
+
 def one_of(key: str, value: Any, options: Sequence[str]) -> str:
     """One of ``options``."""
     if value not in options:
@@ -91,5 +98,5 @@ def starts_increasing_from_zero(key: str, items: Sequence[tuple[str, float]], wh
         previous = start
 
 
-__all__ = ["finite", "positive", "non_negative", "integer", "one_of", "per_wheel", "compact",
+__all__ = ["finite", "positive", "non_negative", "integer", "boolean", "one_of", "per_wheel", "compact",
            "starts_increasing_from_zero"]

@@ -37,7 +37,7 @@ def loop(controller, duration=1.0):
 
 @pytest.fixture(scope="module")
 def sta_run():
-    return loop(SuperTwisting(k1=K1, k2=K2))
+    return loop(SuperTwisting(k1=K1, k2=K2, anti_windup=True))
 
 
 def test_the_test_gains_meet_the_sufficient_condition():
@@ -115,4 +115,20 @@ def test_seed_alone_equals_seed_in_batch():
 @pytest.mark.parametrize("key", ["k1", "k2"])
 def test_bad_gain_is_refused_naming_the_key(key):
     with pytest.raises(ConfigError, match=rf"controller\.{key}=-1"):
-        SuperTwisting(**{"k1": K1, "k2": K2, key: -1.0})
+        SuperTwisting(**{"k1": K1, "k2": K2, "anti_windup": True, key: -1.0})
+
+
+@pytest.mark.parametrize("anti_windup", [True, False])
+def test_v_winds_up_under_saturation_only_without_anti_windup(anti_windup):
+    """A 12 V supply cannot hold 1 m/s against d = -60 rad/s^2 (it needs (B w - J d) / K_u = 12.8 V): the wheels
+    stay saturated and slow. v integrates k2 sign(s) = k2 per step without anti-windup (v = k2 t), and is held
+    with it (it stops as soon as the wheel saturates with s > 0)."""
+    sta = SuperTwisting(k1=K1, k2=K2, anti_windup=anti_windup)
+    out = wheel_loop(sta, NOMINAL, nominal_plant(NOMINAL, lambda t: (-60.0, -60.0)), (W_REF, W_REF), (W_REF, W_REF),
+                     0.5, dt=DT, max_voltage=12.0, state=("v",))
+    assert np.all(out["u_command"][100:] > 12.0) and np.all(out["s"][100:] > 0)  # saturated, slower than wanted
+    v_end = out["v"][-1, 0]
+    if anti_windup:
+        assert np.ptp(out["v"][100:, 0]) < 1e-12 and v_end < 0.1 * K2 * 0.5  # held from saturation on
+    else:
+        assert v_end == pytest.approx(K2 * 0.5, rel=0.02)

@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ddmr_cli.compiled import law
-from ddmr_cli.checks import compact, per_wheel
+from ddmr_cli.checks import boolean, compact, per_wheel
 from ddmr_cli.control.base import WheelController
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel, sign
@@ -103,9 +103,7 @@ class PID(WheelController):
         self.kp = per_wheel("controller.kp", kp)
         self.ki = per_wheel("controller.ki", ki)
         self.kd = per_wheel("controller.kd", kd)
-        if not isinstance(anti_windup, (bool, np.bool_)):
-            raise ConfigError("controller.anti_windup", anti_windup, "must be true or false")
-        self.anti_windup = bool(anti_windup)
+        self.anti_windup = boolean("controller.anti_windup", anti_windup)
 
     def law_parameters(self, nominal: NominalModel, dt: float) -> PIDParameters:
         return PIDParameters(self.kp, self.ki, self.kd, self.anti_windup, float(dt))

@@ -5,7 +5,9 @@ In the sign convention of the paper's (17), on ``s = e = w_d - w`` (10):
 ``u = g^-1 (w_d' - f(w) + k1 |s|^(1/2) sign(s) + v - d_hat)``, ``v' = k2 sign(s)``, ``v(0) = 0``, so that
 ``s' = -k1 |s|^(1/2) sign(s) - v - (d - d_hat)``: with ``z = -(v + d - d_hat)`` the standard super-twisting form
 ``s' = -k1 |s|^(1/2) sign(s) + z``, ``z' = -k2 sign(s) - (d - d_hat)'``. ``v`` is advanced by explicit Euler;
-``u`` is continuous in time (the discontinuity is integrated), unlike sign-SMC's.
+``u`` is continuous in time (the discontinuity is integrated), unlike sign-SMC's. ``v`` is an integrator: with
+``anti_windup`` it is held while the wheel is saturated and ``sign(s)`` would drive it further in (the PID's
+conditional integration, :func:`ddmr_cli.control.pid.integrand`).
 """
 
 from __future__ import annotations
@@ -14,9 +16,10 @@ import math
 import sys
 from typing import NamedTuple
 
-from ddmr_cli.checks import compact, per_wheel, positive
+from ddmr_cli.checks import boolean, compact, per_wheel, positive
 from ddmr_cli.compiled import law
 from ddmr_cli.control import ndo
+from ddmr_cli.control.pid import integrand
 from ddmr_cli.control.base import StepRate, WheelController
 from ddmr_cli.model.robot import NominalModel, sign, voltage_for
 
@@ -24,6 +27,7 @@ from ddmr_cli.model.robot import NominalModel, sign, voltage_for
 class STAParameters(NamedTuple):
     k1: tuple  # per wheel [(rad/s)^(1/2) / s]
     k2: tuple  # per wheel [rad/s^3]
+    anti_windup: bool
     nominal: NominalModel
     dt: float  # [s]
     has_ndo: bool
@@ -62,9 +66,9 @@ def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
 
 @law
 def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
-    """One Euler step of ``v' = k2 sign(s)`` and of the NDO (22)."""
-    st["v"][0] += (p.dt * p.k2[0]) * sign(wd_R - w_R)
-    st["v"][1] += (p.dt * p.k2[1]) * sign(wd_L - w_L)
+    """One Euler step of ``v' = k2 sign(s)`` (held while saturated further in, with anti-windup) and of the NDO."""
+    st["v"][0] += (p.dt * p.k2[0]) * integrand(sign(wd_R - w_R) * 1.0, uc_R, sat_R, p.anti_windup)
+    st["v"][1] += (p.dt * p.k2[1]) * integrand(sign(wd_L - w_L) * 1.0, uc_L, sat_L, p.anti_windup)
     if p.has_ndo:
         ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["d_hat_ndo"][0], st["d_hat_ndo"][1], w_R, w_L, u_R, u_L)
 
@@ -78,6 +82,8 @@ class SuperTwisting(WheelController):
         Gain of ``|s|^(1/2) sign(s)`` per wheel [(rad/s)^(1/2)/s].
     k2 : float or (float, float)
         Gain of the integrated ``sign(s)`` per wheel [rad/s^3].
+    anti_windup : bool
+        Hold ``v`` while the wheel is saturated and ``sign(s)`` pushes further into saturation.
     ndo : NonlinearDisturbanceObserver, optional
         The NDO of the paper's 3.2 (``sta_ndo``); None for none.
     name : str
@@ -86,15 +92,17 @@ class SuperTwisting(WheelController):
 
     laws = sys.modules[__name__]
 
-    def __init__(self, *, k1, k2, ndo: "ndo.NonlinearDisturbanceObserver | None" = None, name: str = "sta") -> None:
+    def __init__(self, *, k1, k2, anti_windup: bool, ndo: "ndo.NonlinearDisturbanceObserver | None" = None,
+                 name: str = "sta") -> None:
         self.k1 = per_wheel("controller.k1", k1, positive)
         self.k2 = per_wheel("controller.k2", k2, positive)
+        self.anti_windup = boolean("controller.anti_windup", anti_windup)
         self.ndo = ndo
         self.name = str(name)
 
     def law_parameters(self, nominal: NominalModel, dt: float) -> STAParameters:
         ndo_params = self.ndo.law_parameters() if self.ndo is not None else ndo.NDOParameters((0.0, 0.0))
-        return STAParameters(self.k1, self.k2, nominal, float(dt), self.ndo is not None, ndo_params)
+        return STAParameters(self.k1, self.k2, self.anti_windup, nominal, float(dt), self.ndo is not None, ndo_params)
 
     def state_fields(self):
         return [("v", "f8", 2), ("z", "f8", 2), ("d_hat_ndo", "f8", 2)]
@@ -105,7 +113,7 @@ class SuperTwisting(WheelController):
         return self.ndo.step_rates() if self.ndo is not None else []
 
     def parameters(self):
-        params = {"k1": compact(self.k1), "k2": compact(self.k2)}
+        params = {"k1": compact(self.k1), "k2": compact(self.k2), "anti_windup": self.anti_windup}
         if self.ndo is not None:
             params.update(self.ndo.parameters())
         return params

@@ -195,6 +195,8 @@ class STAConfig:
                     "(docs/model.md §6)", model=6)
     k2: Any = param(unit="rad/s^3", help="super-twisting gain k2 of v' = k2 sign(s)",
                     range=f"> 0; {PER_WHEEL}; k2 > L, the bound on |(d - d_hat)'|", model=6)
+    anti_windup: bool = param(unit="", help="hold v (the integral of k2 sign(s)) while the wheel is saturated and "
+                              "sign(s) pushes further in", range="true | false", model=6)
     ndo: Optional[NDOConfig] = param(None, unit="", help="nonlinear disturbance observer (null: none)", model=6,
                                      paper="3.2")
 
