@@ -191,8 +191,8 @@ class STAConfig:
     _target_: str = param("ddmr_cli.control.SuperTwisting", unit="", help=TARGET_HELP, model=6)
     name: str = param(unit="", help="label of the controller in tables and figures", model=6)
     k1: Any = param(unit="(rad/s)^(1/2)/s", help="super-twisting gain k1 of k1 |s|^(1/2) sign(s) (s = w_d - w)",
-                    range=f"> 0; {PER_WHEEL}; k1^2 >= 4 L (k2 + L) / (k2 - L) for a derivative bound L "
-                    "(docs/model.md §6)", model=6)
+                    range=f"> 0; {PER_WHEEL}; sufficient with |(d - d_hat)'| <= L: k1^2 >= 4 L (k2 + L) / (k2 - L) "
+                    "(the default is the common 1.5 sqrt(L), docs/model.md §6)", model=6)
     k2: Any = param(unit="rad/s^3", help="super-twisting gain k2 of v' = k2 sign(s)",
                     range=f"> 0; {PER_WHEEL}; k2 > L, the bound on |(d - d_hat)'|", model=6)
     anti_windup: bool = param(unit="", help="hold v (the integral of k2 sign(s)) while the wheel is saturated and "
