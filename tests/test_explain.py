@@ -76,7 +76,7 @@ def test_explain_unknown_key_is_one_line_exit_2(capsys):
 def test_run_help_lists_every_key_with_value_unit_and_meaning(capsys):
     assert main(["run", "--help", "controller=pid"]) == 0
     out = capsys.readouterr().out
-    assert "controller: open_loop, pid*," in out
+    assert "controller: adaptive_smc, adaptive_smc_ndo, adrc, open_loop, pid*," in out and ", sta, sta_ndo" in out
     line = next(line for line in out.splitlines() if line.strip().startswith("controller.kp "))
     assert re.match(r"\s+controller\.kp\s+5\.0\s+\[V s/rad\]\s+proportional gain", line), line
     line = next(line for line in out.splitlines() if line.strip().startswith("robot.mass "))
