@@ -177,7 +177,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         from ddmr_cli.cli import tuning
 
         study = multirun and tuning.is_study(base)
-        session = tuning.prepare_study(base) if study else []  # checks; the rest of the budget
+        session = tuning.prepare_study(base, overrides) if study else []  # checks; the rest of the budget
         plan = [] if study else (sweep.plan_jobs(overrides, base.hydra) if multirun else
                                  [{"dir": "", "overrides": overrides}])
         for job in plan:

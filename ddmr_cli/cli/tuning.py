@@ -195,20 +195,32 @@ class Interval:
     choices: tuple = ()
 
 
-def search_space(cfg: DictConfig) -> list[Interval]:
-    """The study's search space from ``hydra.sweeper.params``, checked: every key a key of the composed config,
-    every interval finite with low < high (and low > 0 on a log scale). Raises ConfigError naming the key."""
+def space_texts(cfg: DictConfig, overrides=()) -> dict[str, str]:
+    """The search space as text, key -> sweep: the study's ``hydra.sweeper.params``, then the sweep overrides of
+    the command line (``'controller.kp=tag(log, interval(1, 20))'``), which the Optuna sweeper adds to them."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    texts = {str(k): str(v) for k, v in (cfg.hydra.sweeper.get("params") or {}).items()}
+    for o in OverridesParser.create().parse_overrides([str(o) for o in overrides]):
+        if o.is_sweep_override():
+            texts[o.get_key_element().lstrip("+~")] = o.input_line.split("=", 1)[1]
+    return texts
+
+
+def search_space(cfg: DictConfig, overrides=()) -> list[Interval]:
+    """The study's search space (:func:`space_texts`), checked: every key a key of the composed config, every
+    interval finite with low < high (and low > 0 on a log scale). Raises ConfigError naming the key."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
     from hydra.errors import HydraException
 
-    params = cfg.hydra.sweeper.get("params") or {}
+    params = space_texts(cfg, overrides)
     if not params:
         raise ConfigError("hydra.sweeper.params", None, "the study has no search space (conf/tune/<controller>.yaml)")
     parser = OverridesParser.create()
     space = []
     for key, text in params.items():
-        where = f"hydra.sweeper.params.{key}"
+        where = key if key in overrides_keys(overrides) else f"hydra.sweeper.params.{key}"
         if OmegaConf.select(cfg, str(key), default=None) is None:
             raise ConfigError(where, text, f"{key} is not a key of the composed config")
         try:
@@ -233,7 +245,11 @@ def search_space(cfg: DictConfig) -> list[Interval]:
     return space
 
 
-def check_study(cfg: DictConfig) -> list[Interval]:
+def overrides_keys(overrides) -> set[str]:
+    return {str(o).lstrip("+~").partition("=")[0] for o in overrides}
+
+
+def check_study(cfg: DictConfig, overrides=()) -> list[Interval]:
     """Check a composed study config (with its ``hydra`` node): the tuning settings, the search space, and the
     config at its own (paper) gains. Returns the search space. Raises ConfigError naming the key."""
     from ddmr_cli.checks import finite
@@ -256,13 +272,13 @@ def check_study(cfg: DictConfig) -> list[Interval]:
     if h_first <= last and first <= h_last:
         raise ConfigError("tuning.held_out.base_seed", h_first, f"the held-out seeds {h_first}-{h_last} overlap the "
                                                                 f"tuning seeds {first}-{last} (run.base_seed, run.n_runs)")
-    space = search_space(cfg)
+    space = search_space(cfg, overrides)
     for name in t.scenarios:
         validate_config(scenario_config(cfg, name))
     return space
 
 
-def study_hash(cfg: DictConfig) -> str:
+def study_hash(cfg: DictConfig, overrides=()) -> str:
     """What a trial computes (the result config without the budget settings, plus the search space): a study
     may be resumed only with the same hash."""
     from ddmr_cli.cli.config.build import result_config
@@ -270,7 +286,7 @@ def study_hash(cfg: DictConfig) -> str:
     container = result_config(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
     for key in _BUDGET_KEYS:
         container.get("tuning", {}).pop(key, None)
-    container["search_space"] = {str(k): str(v) for k, v in (cfg.hydra.sweeper.get("params") or {}).items()}
+    container["search_space"] = space_texts(cfg, overrides)
     text = json.dumps(container, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -305,18 +321,20 @@ def trials_done(study) -> int:
     return sum(1 for t in study.get_trials(deepcopy=False) if t.state == TrialState.COMPLETE)
 
 
-def prepare_study(cfg: DictConfig) -> list[str]:
+def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
     """Check a study before Hydra starts and plan this session: the Hydra overrides that run the rest of the
     budget (``hydra.sweeper.n_trials``) with the sampler seeded ``tuning.seed + trials done``.
 
+    ``overrides``: the command line's (its sweep overrides extend the search space).
     Raises ConfigError on a bad setting, or when the sweep dir holds a study of another config."""
-    check_study(cfg)
+    check_study(cfg, overrides)
     sweep_dir = Path(str(cfg.hydra.sweep.dir))
     budget, seed, done = int(cfg.tuning.n_trials), int(cfg.tuning.seed), 0
     info = read_study_info(sweep_dir)
-    if info is not None and info.get("hash") != study_hash(cfg):
+    digest = study_hash(cfg, overrides)
+    if info is not None and info.get("hash") != digest:
         raise ConfigError("hydra.sweep.dir", str(sweep_dir), f"holds a study of another config (hash {info.get('hash')}"
-                          f", this one {study_hash(cfg)}); choose another hydra.sweep.dir or remove it")
+                          f", this one {digest}); choose another hydra.sweep.dir or remove it")
     if (sweep_dir / STORAGE_FILE).is_file():
         try:
             study = load_study(sweep_dir, str(cfg.hydra.sweeper.study_name))
@@ -421,10 +439,11 @@ class StudyCallback(Callback):
         sweep_dir.mkdir(parents=True, exist_ok=True)
         info = read_study_info(sweep_dir) or {
             "study_name": str(config.hydra.sweeper.study_name), "controller": str(config.tuning.controller),
-            "objective": str(config.tuning.objective), "hash": study_hash(config), "metric": OBJECTIVE_METRIC,
+            "objective": str(config.tuning.objective), "hash": study_hash(config, config.hydra.overrides.task),
+            "metric": OBJECTIVE_METRIC,
             "overrides": _task_overrides(config), "sessions": []}
         info["budget"] = int(config.tuning.n_trials)
-        info["search_space"] = {str(k): str(v) for k, v in config.hydra.sweeper.params.items()}
+        info["search_space"] = space_texts(config, config.hydra.overrides.task)
         info["sessions"].append({"started": time.time(), "n_trials": int(config.hydra.sweeper.n_trials),
                                  "sampler_seed": config.hydra.sweeper.sampler.get("seed"),
                                  "launcher": str(config.hydra.launcher.get("_target_", "")).rsplit(".", 1)[-1]})
