@@ -13,17 +13,19 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from paper import make_smc, make_robot, make_simulation, make_terrain
+from ddmr_cli import paper_scenario
 from ddmr_cli import (SMC, NonlinearDisturbanceObserver, OpenLoop, Phase, Robot, Scenario, Simulation, Terrain,
                       TerrainZone, simulate)
 from ddmr_cli.model.robot import GRAVITY
 
-ROBOT = Robot()
-QUIET = Terrain(zones=[TerrainZone("quiet", 0.0, 0.0, 0.0)])
+ROBOT = make_robot()
+QUIET = make_terrain(TerrainZone("quiet", 0.0, 0.0, 0.0))
 U = np.array([12.0, 4.0])  # unequal, so the coupling J12 matters
 
 
 def open_loop_from_rest(integrator, dt=1e-3, duration=0.6, u=U):
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
                      integrator=integrator, initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds="rest",
                      divergence_bound=1e9)
     return simulate(sim, seeds=[0], keep_series=[0])
@@ -93,8 +95,8 @@ def test_open_loop_steady_state_is_Ku_u_over_B():
 def test_rolling_resistance_disturbance_closed_form():
     """d = -J^-1 mu m g R / 2 [1, 1] on both wheels while turning forward (docs/model.md §5); d_true records it."""
     mu = 0.05
-    terrain = Terrain(zones=[TerrainZone("sand", 0.0, 0.0, mu)])
-    sim = Simulation(controller=OpenLoop(10.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=0.2,
+    terrain = make_terrain(TerrainZone("sand", 0.0, 0.0, mu))
+    sim = make_simulation(controller=OpenLoop(10.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=0.2,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds="reference", divergence_bound=1e9)
     s = simulate(sim, seeds=[1], keep_series=[1]).series[1]
     J = ROBOT.inertia_matrix
@@ -113,8 +115,8 @@ def test_rolling_resistance_disturbance_closed_form():
 def test_roughness_disturbance_has_the_zone_scale():
     """d = -roughness n(t) with n a unit-variance OU process: the sample std of d_true is ~ roughness."""
     rough = 30.0
-    terrain = Terrain(zones=[TerrainZone("rough", 0.0, rough, 0.0)], correlation_time=0.002)
-    sim = Simulation(controller=OpenLoop(11.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=2.0,
+    terrain = make_terrain(TerrainZone("rough", 0.0, rough, 0.0), correlation_time=0.002)
+    sim = make_simulation(controller=OpenLoop(11.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=2.0,
                      initial_pose=(0.0, 0.0, 0.0), divergence_bound=1e9)
     s = simulate(sim, seeds=[5], keep_series=[5]).series[5]
     d = np.concatenate([s["d_true_right"], s["d_true_left"]])
@@ -133,9 +135,10 @@ def test_roughness_disturbance_has_the_zone_scale():
 @pytest.fixture(scope="module")
 def tiny_run():
     """SMC-NDO on a two-zone rough terrain and a two-phase scenario, 0.3 s, all series kept."""
-    terrain = Terrain(zones=[TerrainZone("a", 0.0, 20.0, 0.02), TerrainZone("b", 0.12, 60.0, 0.08)])
-    scenario = Scenario("two", (Phase("p0", 0.0), Phase("p1", 0.1, roughness=True, uncertainty=True)))
-    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0)), robot=ROBOT, terrain=terrain,
+    terrain = make_terrain(TerrainZone("a", 0.0, 20.0, 0.02), TerrainZone("b", 0.12, 60.0, 0.08))
+    scenario = Scenario("two", (Phase("p0", 0.0, roughness=True, uncertainty=False),
+                                Phase("p1", 0.1, roughness=True, uncertainty=True)), paper_scenario(2).uncertainty)
+    sim = make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), robot=ROBOT, terrain=terrain,
                      scenario=scenario, dt=1e-3, duration=0.3, divergence_bound=1e9)
     res = simulate(sim, seeds=[11], keep_series=[11])
     return res, res.series[11]
@@ -215,7 +218,7 @@ def test_constant_open_loop_voltage_metrics():
     u = np.array([9.0, 5.0])
     w_ss = ROBOT.voltage_gain * u / ROBOT.damping
     dt, duration = 1e-3, 0.25
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds=tuple(w_ss), divergence_bound=1e9)
     res = simulate(sim, seeds=[0])
     T = duration
@@ -234,7 +237,7 @@ def test_constant_open_loop_voltage_metrics():
 def test_negative_open_loop_voltage_mean_is_absolute():
     u = np.array([-6.0, -6.0])
     w_ss = ROBOT.voltage_gain * u / ROBOT.damping
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=1e-3, duration=0.05,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=1e-3, duration=0.05,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds=tuple(w_ss), divergence_bound=1e9)
     res = simulate(sim, seeds=[0])
     assert res.metric("mean_voltage")[0] == pytest.approx(6.0, rel=1e-14)

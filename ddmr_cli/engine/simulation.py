@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
@@ -45,38 +45,41 @@ MIN_CHUNK_STEPS = 64
 class Simulation:
     """Everything one batch of runs needs, as plain objects (no Hydra here).
 
+    Every field is required: the values live once, in the packaged config (``conf/``), and
+    :func:`ddmr_cli.paper_simulation` builds this object from it (``dataclasses.replace`` changes a part).
+
     Parameters
     ----------
     controller : WheelController
         The wheel-speed controller (its state is reset by every :func:`simulate` call).
     robot, terrain, scenario, trajectory, outer_loop
-        Model pieces; defaults are the paper's robot, no terrain, one phase, the paper's line, Kanayama.
+        Model pieces (docs/model.md §1-5).
     dt : float
-        Step [s] (docs/model.md §4: 1 ms).
+        Step [s] (docs/model.md §4).
     duration : float
-        Simulated time [s] (paper: 15).
+        Simulated time [s].
     integrator : {'euler', 'rk4'}
     initial_pose : (x, y, theta)
-        Paper: (0, 0.05, 0.05).
+        [m, m, rad].
     initial_wheel_speeds : 'reference', 'rest' or (w_R, w_L)
-        ``reference``: the wheel speeds of the reference's v_r, omega_r at t = 0 (a rolling start, the default);
+        ``reference``: the wheel speeds of the reference's v_r, omega_r at t = 0 (a rolling start);
         ``rest``: zero.
     divergence_bound : float
         A run whose deviation exceeds this [m] (or turns NaN) is marked diverged.
     """
 
     controller: WheelController
-    robot: Robot = field(default_factory=Robot)
-    terrain: Terrain = field(default_factory=Terrain)
-    scenario: Scenario = field(default_factory=Scenario)
-    trajectory: Trajectory = field(default_factory=StraightLine)
-    outer_loop: Kanayama = field(default_factory=Kanayama)
-    dt: float = 1e-3
-    duration: float = 15.0
-    integrator: str = "euler"
-    initial_pose: Sequence[float] = (0.0, 0.05, 0.05)
-    initial_wheel_speeds: str | Sequence[float] = "reference"
-    divergence_bound: float = 1.0
+    robot: Robot
+    terrain: Terrain
+    scenario: Scenario
+    trajectory: Trajectory
+    outer_loop: Kanayama
+    dt: float
+    duration: float
+    integrator: str
+    initial_pose: Sequence[float]
+    initial_wheel_speeds: str | Sequence[float]
+    divergence_bound: float
 
     @property
     def n_steps(self) -> int:

@@ -22,8 +22,8 @@ class Phase:
 
     name: str
     start: float
-    roughness: bool = True
-    uncertainty: bool = False
+    roughness: bool
+    uncertainty: bool
 
 
 class DampingUncertainty(NamedTuple):
@@ -32,17 +32,17 @@ class DampingUncertainty(NamedTuple):
     Parameters
     ----------
     correlation_time : float
-        [s] (docs/model.md: 0.5).
+        [s].
     std : float
-        Stationary standard deviation (docs/model.md: 0.4).
+        Stationary standard deviation.
     low, high : float
-        Clip bounds of delta (docs/model.md: -0.5, 1.0), so ``B_true`` stays in ``[0.5, 2] B_nom``.
+        Clip bounds of delta (the paper's reading: -0.5, 1.0, so ``B_true`` stays in ``[0.5, 2] B_nom``).
     """
 
-    correlation_time: float = 0.5
-    std: float = 0.4
-    low: float = -0.5
-    high: float = 1.0
+    correlation_time: float
+    std: float
+    low: float
+    high: float
 
 
 @dataclass(frozen=True)
@@ -53,9 +53,9 @@ class Scenario:
     uncertainty only (roughness off, mu kept), ``[10, 15] s`` both.
     """
 
-    name: str = "scenario"
-    phases: Sequence[Phase] = field(default_factory=lambda: (Phase("all", 0.0),))
-    uncertainty: DampingUncertainty = field(default_factory=DampingUncertainty)
+    name: str
+    phases: Sequence[Phase]
+    uncertainty: DampingUncertainty
 
     def __post_init__(self):
         object.__setattr__(self, "phases", tuple(self.phases))
