@@ -231,7 +231,12 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
     from ddmr_cli.report import build_report
 
     try:
-        written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
+        from ddmr_cli.report import tuning
+
+        if tuning.is_tuning_dir(path):  # studies: held-out runs at paper and tuned gains, then their report
+            written = tuning.build(path, out, margin)
+        else:
+            written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
     except (DDMRError, FileNotFoundError) as exc:
         print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return failure

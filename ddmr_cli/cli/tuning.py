@@ -479,3 +479,103 @@ def finish(sweep_dir: Path) -> int:
 __all__ = ["OBJECTIVE_METRIC", "TrialOutcome", "evaluate_gains", "run_trial", "search_space", "check_study",
            "prepare_study", "study_hash", "load_study", "trials_table", "write_tables", "StudyCallback", "finish",
            "is_study", "scenario_config"]
+
+
+# --- held-out evaluation at tuned gains (ddmr report on a study) ---------------------------------------------
+
+HELD_OUT_DIR = "heldout"
+GAINS = ("paper", "tuned")
+
+
+@dataclass
+class Study:
+    """A study dir as the report reads it: ``tuning.json``, the Optuna study, its trials table."""
+
+    dir: Path
+    info: dict
+    study: Any
+
+    @property
+    def controller(self) -> str:
+        return str(self.info["controller"])
+
+    @property
+    def objective(self) -> str:
+        return str(self.info["objective"])
+
+    @property
+    def overrides(self) -> list[str]:
+        """The study's command-line overrides without its sweeps (what composes its config)."""
+        from hydra.core.override_parser.overrides_parser import OverridesParser
+
+        parsed = OverridesParser.create().parse_overrides(list(self.info["overrides"]))
+        return [o.input_line for o in parsed if not o.is_sweep_override()]
+
+    def best(self) -> list:
+        return best_trials(self.study)
+
+    def config(self, params: dict | None = None, extra=()) -> DictConfig:
+        """The study's composed config, at ``params`` (e.g. a trial's gains) and ``extra`` overrides."""
+        from ddmr_cli.cli.config import compose_config
+
+        return compose_config([*self.overrides, *(f"{k}={v!r}" for k, v in (params or {}).items()), *extra])
+
+
+def find_studies(path: Path) -> list[Study]:
+    """The studies in ``path``: the dir itself, or every dir below it with a ``tuning.json`` (sorted)."""
+    path = Path(path)
+    dirs = [path] if (path / STUDY_FILE).is_file() else sorted(
+        p.parent for p in path.rglob(STUDY_FILE) if HELD_OUT_DIR not in p.relative_to(path).parts)
+    studies = []
+    for d in dirs:
+        info = read_study_info(d)
+        if info is None or not (d / STORAGE_FILE).is_file():
+            continue
+        studies.append(Study(d, info, load_study(d, info["study_name"])))
+    return studies
+
+
+def held_out_config(study: Study, scenario: str, gains: str) -> tuple[DictConfig, list[str]]:
+    """The config of one held-out job: the study's config at its paper (``gains='paper'``) or best gains, on
+    the held-out seeds, in one scenario of ``tuning.scenarios``; a plain job config (``tuning`` null)."""
+    base = study.config()
+    h = base.tuning.held_out
+    extra = [f"run.base_seed={int(h.base_seed)}", f"run.n_runs={int(h.n_runs)}", f"run.keep_series=[{int(h.base_seed)}]",
+             "run.plots=false", "run.progress=false"]
+    params = dict(study.best()[0].params) if gains == "tuned" else {}
+    cfg = scenario_config(study.config(params, extra), scenario)
+    with read_write(cfg), open_dict(cfg):
+        cfg.tuning = None
+    overrides = [*study.overrides, *(f"{k}={v!r}" for k, v in params.items()), *extra, f"scenario={scenario}"]
+    return cfg, overrides
+
+
+def run_held_out(studies: list[Study], root: Path) -> Path:
+    """Run every single-objective study's controller at its paper and its tuned gains on the held-out seeds in
+    every scenario: standard job dirs ``<root>/heldout/<gains>/<controller>-<scenario>`` (complete jobs with the
+    same config hash are kept). Returns ``<root>/heldout``. Raises ConfigError when two studies tune the same
+    controller."""
+    from ddmr_cli.cli.app import execute
+    from ddmr_cli.cli.config import config_hash, validate_config
+
+    single = [s for s in studies if s.objective == "deviation" and s.best()]
+    seen: dict[str, Path] = {}
+    for s in single:
+        if s.controller in seen:
+            raise ConfigError("path", str(root), f"two studies tune {s.controller} ({seen[s.controller]}, {s.dir}); "
+                                                 f"report one of them")
+        seen[s.controller] = s.dir
+    out_root = Path(root) / HELD_OUT_DIR
+    for s in single:
+        for gains in GAINS:
+            for scenario in s.config().tuning.scenarios:
+                cfg, overrides = held_out_config(s, str(scenario), gains)
+                out = out_root / gains / f"{s.controller}-{scenario}"
+                digest = config_hash(cfg)
+                previous = io.read_summary(out)
+                if previous and previous.get("status") == "complete" and previous.get("config_hash") == digest:
+                    continue
+                print(f"ddmr: held-out {s.controller} at {gains} gains, {scenario}: seeds "
+                      f"{int(cfg.run.base_seed)}-{int(cfg.run.base_seed) + int(cfg.run.n_runs) - 1}", flush=True)
+                execute(cfg, out, overrides, digest, validate_config(cfg))
+    return out_root
