@@ -32,6 +32,7 @@ commands:
                             ddmr run -m +experiment=table4            # Table 4: 4 controllers x 2 scenarios
                             ddmr run -m controller=smc,smc_ndo controller.switching_gain=4,8,12
                             ddmr run -m +experiment=table4 launcher=slurm cluster.partition=compute
+                            ddmr run -m +tune=smc_ndo                 # tune gains (Optuna); ddmr report it
                           add report=true to write the report when the run or sweep ends
   explain KEY [OVERRIDES] a config key's meaning, unit, value, valid range and docs/model.md section
   report [PATH] [--out DIR] [--margin 0.1mm]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
@@ -332,7 +333,7 @@ def run_help(overrides: list[str], config_name: str = "config") -> int:
     print("\n== Config groups (group=option; * = composed) ==")
     for group in GROUPS:
         options = [f"{o}*" if choices.get(group) == o else o for o in group_options(group)]
-        prefix = "+" if group == "experiment" else ""
+        prefix = "+" if group in ("experiment", "tune") else ""
         print(f"  {prefix}{group}: {', '.join(options)}")
     docs = key_docs(cfg)
     print(f"\n== Keys of the composed config ({len(docs)}): key  value  [unit]  meaning ==")

@@ -107,15 +107,17 @@ def ceilings(cfg: DictConfig) -> tuple[float, float]:
 
 
 def penalised(cfg: DictConfig, violation: float) -> tuple[float, float]:
-    """The (deviation, chattering) an infeasible trial scores: above every feasible trial, growing with the
-    violation (the fraction of runs diverged plus the saturation fraction beyond the limit)."""
+    """The (deviation, chattering) an infeasible trial scores, docs/model.md §9 [9c]: ``bound (1 + v)``, above
+    every feasible trial, growing with the violation ``v`` (the fraction of runs diverged plus the saturation
+    fraction beyond the limit; 1 for gains unstable at the step)."""
     bound, chattering = ceilings(cfg)
     return bound * (1.0 + violation), chattering * (1.0 + violation)
 
 
 def evaluate_gains(cfg: DictConfig, threads: int = 0) -> TrialOutcome:
     """Simulate a study config's tuning seeds in every scenario of ``tuning.scenarios``; the objective values
-    with the constraints applied (see the module docstring)."""
+    with the constraints applied: docs/model.md §9, the deviation [9a], the chattering [9b], the violation and
+    penalty [9c] (:func:`penalised`)."""
     from ddmr_cli.cli.config import seeds_of, validate_config
     from ddmr_cli.engine.simulation import simulate
 
