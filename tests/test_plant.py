@@ -7,6 +7,7 @@ gives ``w_k = w_ss + (I - A dt)^k (w0 - w_ss)`` instead.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -134,14 +135,21 @@ def test_roughness_disturbance_has_the_zone_scale():
 
 @pytest.fixture(scope="module")
 def tiny_run():
-    """SMC-NDO on a two-zone rough terrain and a two-phase scenario, 0.3 s, all series kept."""
-    terrain = make_terrain(TerrainZone("a", 0.0, 20.0, 0.02), TerrainZone("b", 0.12, 60.0, 0.08))
-    scenario = Scenario("two", (Phase("p0", 0.0, roughness=True, uncertainty=False),
-                                Phase("p1", 0.1, roughness=True, uncertainty=True)), paper_scenario(2).uncertainty)
-    sim = make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), robot=ROBOT, terrain=terrain,
-                     scenario=scenario, dt=1e-3, duration=0.3, divergence_bound=1e9)
+    sim = _tiny_sim()
     res = simulate(sim, seeds=[11], keep_series=[11])
     return res, res.series[11]
+
+
+def _tiny_sim():
+    """SMC-NDO on a two-zone rough terrain and a two-phase scenario (phases by distance travelled), 0.3 s, all
+    series kept; steady from 0.05 s, and 0.02 s after a zone's or phase's entry."""
+    terrain = make_terrain(TerrainZone("a", 0.0, 20.0, 0.02), TerrainZone("b", 0.12, 60.0, 0.08))
+    scenario = Scenario("two", (Phase("p0", 0.0, roughness=True, uncertainty=False),
+                                Phase("p1", 0.1, roughness=True, uncertainty=True)), paper_scenario(2).uncertainty,
+                        phase_clock="distance")
+    return make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), robot=ROBOT, terrain=terrain,
+                           scenario=scenario, dt=1e-3, duration=0.3, divergence_bound=1e9, settle_time=0.05,
+                           zone_settle_time=0.02)
 
 
 def test_deviation_metrics_match_series(tiny_run):
@@ -205,12 +213,34 @@ def test_segment_metrics_match_series(tiny_run):
     for z, name in enumerate(["a", "b"]):
         assert res.metric("deviation_mae", f"zone:{name}")[0] == pytest.approx(np.mean(dev[zone == z]), rel=1e-12)
         assert res.metric("iae", f"zone:{name}")[0] == pytest.approx(np.sum(dev[zone == z]) * res.dt, rel=1e-12)
-    t = s["t"]
-    for name, mask in (("p0", t < 0.1 - 1e-12), ("p1", t >= 0.1 - 1e-12)):
+    # phases by distance travelled too (phase_clock="distance"): p1 from 0.1 m on
+    in_p1 = s["distance"] >= 0.1
+    for name, mask in (("p0", ~in_p1), ("p1", in_p1)):
         assert res.metric("deviation_mae", f"phase:{name}")[0] == pytest.approx(np.mean(dev[mask]), rel=1e-12)
     # the uncertainty phase really scales the damping, the first one does not
-    assert np.all(s["damping_scale"][t < 0.1 - 1e-12] == 1.0)
-    assert np.any(s["damping_scale"][t >= 0.1 - 1e-12] != 1.0)
+    assert np.all(s["damping_scale"][~in_p1] == 1.0)
+    assert np.any(s["damping_scale"][in_p1] != 1.0)
+
+
+def test_steady_state_metrics_skip_the_settling_steps(tiny_run):
+    """``_ss`` metrics count steps from settle_time (0.05 s = step 50) on, and in a zone or phase only from
+    zone_settle_time (20 steps) after the robot entered it."""
+    res, s = tiny_run
+    dev, k = s["deviation"], np.arange(len(s["deviation"]))
+    steady = k >= 50
+    assert res.metric("deviation_mae_ss")[0] == pytest.approx(np.mean(dev[steady]), rel=1e-12)
+    assert res.metric("deviation_max_ss")[0] == np.max(dev[steady])
+    assert res.metric("e_y_mae_ss")[0] == pytest.approx(np.mean(np.abs(s["e_y"][steady])), rel=1e-12)
+    assert res.metric("itae_ss")[0] == pytest.approx(np.sum((s["t"] * dev)[steady]) * res.dt, rel=1e-12)
+    for segment, inside in (("zone:b", s["distance"] >= 0.12), ("phase:p1", s["distance"] >= 0.1),
+                            ("zone:a", s["distance"] < 0.12)):
+        entry = np.flatnonzero(inside)[0]
+        mask = inside & steady & (k - entry >= 20)
+        assert 0 < mask.sum() < inside.sum()  # the rule removes steps, and some remain
+        assert res.metric("deviation_mae_ss", segment)[0] == pytest.approx(np.mean(dev[mask]), rel=1e-12)
+    # settling longer than the run: no steady step, NaN, not an error
+    late = simulate(dataclasses.replace(_tiny_sim(), settle_time=1.0), [11])
+    assert np.isnan(late.metric("deviation_mae_ss")[0]) and np.isfinite(late.metric("deviation_mae")[0])
 
 
 def test_constant_open_loop_voltage_metrics():

@@ -104,11 +104,15 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
     threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
-    result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress, threads=threads)
+    result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress, threads=threads,
+                      bands=bool(cfg.run.bands))
     io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
     io.write_csv(out / io.METRICS_CSV, result.rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.rows(segments=True))
     files = [io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV]
+    if result.bands:
+        io.write_bands(out / io.BANDS, result.bands)
+        files.append(io.BANDS)
     if result.series:
         io.write_series(out / io.SERIES, result.series)
         files.append(io.SERIES)

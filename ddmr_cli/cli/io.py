@@ -18,6 +18,7 @@ SUMMARY = "summary.json"
 METRICS_CSV = "metrics.csv"
 SEGMENTS_CSV = "segments.csv"
 SERIES = "series.npz"
+BANDS = "bands.npz"
 CONFIG = "config.yaml"
 PLOTS_DIR = "plots"
 
@@ -92,6 +93,17 @@ def write_series(path: Path, series: dict[int, dict[str, np.ndarray]]) -> Path:
     def _write(tmp: str) -> None:
         with open(tmp, "wb") as fh:
             np.savez_compressed(fh, **arrays)
+
+    return atomic_write(path, _write)
+
+
+def write_bands(path: Path, bands: dict[str, np.ndarray]) -> Path:
+    """Across-seed bands (:meth:`ddmr_cli.engine.bands.BandAccumulator.arrays`), uncompressed: key ``t`` and
+    ``<channel>/mean|p05|p95``."""
+
+    def _write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **bands)
 
     return atomic_write(path, _write)
 

@@ -78,7 +78,8 @@ class TerrainConfig:
 
 @dataclass
 class PhaseConfig:
-    start: float = param(unit="s", help="time at which the phase begins",
+    start: float = param(unit="m or s", help="distance travelled (scenario.phase_clock=distance) or time (time) "
+                         "at which the phase begins",
                          range=">= 0; the first phase starts at 0, starts increasing", model=5, paper="Fig. 10")
     roughness: bool = param(unit="", help="terrain roughness on in this phase (rolling resistance is always "
                             "on)", range="true | false", model=5, paper="Fig. 10")
@@ -104,6 +105,9 @@ class ScenarioConfig:
                                            range="at least one phase", model=5, paper="Fig. 10", factory=dict)
     uncertainty: UncertaintyConfig = param(unit="", help="the damping uncertainty delta(t) of uncertain phases "
                                            "(conf/scenario/uncertainty)", model=5, factory=UncertaintyConfig)
+    phase_clock: str = param(unit="", help="what phase starts are measured along: the distance the robot has "
+                             "travelled [m] (the terrain zones' axis) or time [s]", range="distance | time", model=5,
+                             paper="Fig. 10 (in s, at 1 m/s)")
 
 
 @dataclass
@@ -226,6 +230,15 @@ class SimulationConfig:
 
 
 @dataclass
+class MetricsConfig:
+    settle_time: float = param(unit="s", help="steady-state metrics (<metric>_ss) count the steps from this time "
+                               "on (after the start-up transient of the initial pose offset)",
+                               range=">= 0 (from simulation.duration on: no steady step, NaN)", model=7)
+    zone_settle_time: float = param(unit="s", help="per zone and phase, steady-state metrics also skip this long "
+                                    "after the robot entered it", range=">= 0", model=7)
+
+
+@dataclass
 class RunConfig:
     n_runs: int = param(unit="1", help="seeds per job; Table 4 statistics are across them",
                         range="integer >= 1", model=7, paper="Table 4 (50 runs)")
@@ -237,6 +250,9 @@ class RunConfig:
                         range="true | false")
     progress: bool = param(unit="", help="progress lines on the terminal and in the log",
                            range="true | false")
+    bands: bool = param(unit="", help="mean and 5-95 % band over all seeds of deviation, pose errors, u and s at "
+                        "every grid step (bands.npz, drawn in the report's time-series figures)",
+                        range="true | false", model=7)
     threads: int = param(unit="1", help="threads of the compiled engine (0: all cores for a single run, 1 per "
                          "job in a sweep)", range="integer >= 0")
 
@@ -307,6 +323,8 @@ class DDMRConfig:
                                         model=3, factory=OuterLoopConfig)
     simulation: SimulationConfig = param(unit="", help="time stepping, initial state, divergence", model=4,
                                          factory=SimulationConfig)
+    metrics: MetricsConfig = param(unit="", help="how the run metrics are counted", model=7,
+                                   factory=MetricsConfig)
     run: RunConfig = param(unit="", help="seeds, kept series and display settings of a job", factory=RunConfig)
     experiment_name: str = param(unit="", help="first level of the output dir outputs/<experiment_name>/")
     cluster: Dict[str, Any] = param(unit="", help="launcher settings set by conf/launcher presets",
