@@ -23,8 +23,8 @@ from ddmr_cli.cli import tuning as TU  # noqa: E402
 from ddmr_cli.report.tuning import pareto_front  # noqa: E402
 
 #: a tiny study: 2 seeds, 0.4 s at a 2 ms step (every controller's loop is stable there), 4 trials
-TINY = ["run.n_runs=2", "simulation.duration=0.4", "simulation.dt=0.002", "tuning.n_trials=4",
-        "tuning.held_out.n_runs=6"]
+TINY = ["run.n_runs=2", "simulation.duration=0.4", "simulation.dt=0.002", "metrics.settle_time=0.2",
+        "metrics.zone_settle_time=0.1", "tuning.held_out.n_runs=6"]
 
 
 # --- the search spaces ----------------------------------------------------------------------------------------
@@ -64,6 +64,7 @@ def test_the_study_settings_are_the_same_for_every_controller():
     (["+tune=pid", "controller.gain_kx=interval(1,2)"], "controller.gain_kx is not a key"),
     (["+tune=pid", "tuning.held_out.base_seed=5"], "overlap the tuning seeds"),
     (["+tune=smc", "objective=best"], "objective=best: unknown objective"),
+    (["+tune=smc", "simulation.duration=2", "metrics.settle_time=2"], "metrics.settle_time=2.0: must be <"),
 ])
 def test_bad_study_input_is_one_line_and_exit_2(tmp_path, capsys, args, named):
     out = tmp_path / "study"
@@ -77,7 +78,8 @@ def test_bad_study_input_is_one_line_and_exit_2(tmp_path, capsys, args, named):
 
 
 def _study_cfg(*extra):
-    return compose_config(["+tune=pid", "run.n_runs=3", "simulation.duration=0.4", "simulation.dt=0.002", *extra])
+    return compose_config(["+tune=pid", "run.n_runs=3", "simulation.duration=0.4", "simulation.dt=0.002",
+                           "metrics.settle_time=0.2", *extra])
 
 
 def test_a_feasible_trial_scores_the_mean_deviation_over_scenarios_and_runs():
@@ -125,9 +127,9 @@ def test_pareto_front_keeps_the_non_dominated_points():
 # --- end to end -----------------------------------------------------------------------------------------------
 
 
-def _study(tmp_path: Path, name: str, *extra: str) -> Path:
+def _study(tmp_path: Path, name: str, *extra: str, budget: int = 4) -> Path:
     out = tmp_path / name
-    proc = run_ddmr(["run", "-m", *extra, *TINY, f"hydra.sweep.dir={out}"], cwd=tmp_path)
+    proc = run_ddmr(["run", "-m", *extra, *TINY, f"tuning.n_trials={budget}", f"hydra.sweep.dir={out}"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return out
 
@@ -148,6 +150,7 @@ def test_a_study_end_to_end_and_its_report(tmp_path):
     assert len(best) == 1 and math.isclose(best[0]["values"][0], trials["value_0"].min(), rel_tol=1e-12)
     # the best trial's value is reproduced by evaluating its gains again
     cfg = compose_config(["+tune=smc", *TINY, *(f"{k}={v!r}" for k, v in best[0]["params"].items())])
+    assert TU.OBJECTIVE_METRIC == "deviation_mae_ss" and trials[TU.OBJECTIVE_METRIC].notna().all()
     assert math.isclose(TU.evaluate_gains(cfg).values[0], best[0]["values"][0], rel_tol=1e-12)
     # the same study through the basic launcher: the same trials (the batch, not the launcher, sets the sampling)
     basic = _trials(_study(tmp_path, "basic", "+tune=smc", "launcher=basic"))
@@ -176,14 +179,13 @@ def test_a_study_end_to_end_and_its_report(tmp_path):
 def test_a_killed_study_resumes_and_the_trial_count_continues(tmp_path):
     import optuna
 
-    first = ["+tune=pid", "tuning.n_trials=2"]
-    study = _study(tmp_path, "pid", *first)
+    study = _study(tmp_path, "pid", "+tune=pid", budget=2)
     info = json.loads((study / TU.STUDY_FILE).read_text())
     # what a kill leaves: a trial asked of the sampler and never told its value (RUNNING)
     stored = optuna.load_study(study_name=info["study_name"], storage=TU.storage_url(study))
     stored.ask()
-    out = study
-    proc = run_ddmr(["run", "-m", "+tune=pid", *TINY, f"hydra.sweep.dir={out}"], cwd=tmp_path)  # budget 4
+    command = ["run", "-m", "+tune=pid", *TINY, "tuning.n_trials=4", f"hydra.sweep.dir={study}"]
+    proc = run_ddmr(command, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "resuming study pid-deviation: 2/4 trials done (1 left running by a killed session marked failed)" \
         in proc.stderr + proc.stdout
@@ -194,10 +196,10 @@ def test_a_killed_study_resumes_and_the_trial_count_continues(tmp_path):
     sessions = json.loads((study / TU.STUDY_FILE).read_text())["sessions"]
     assert [s["n_trials"] for s in sessions] == [2, 2] and [s["sampler_seed"] for s in sessions] == [0, 2]
     # the same command once the budget is spent runs nothing and succeeds
-    again = run_ddmr(["run", "-m", "+tune=pid", *TINY, f"hydra.sweep.dir={out}"], cwd=tmp_path)
+    again = run_ddmr(command, cwd=tmp_path)
     assert again.returncode == 0 and len(_trials(study)) == 5
     # another config into the same study dir is refused before anything runs
-    other = run_ddmr(["run", "-m", "+tune=pid", *TINY, "run.n_runs=3", f"hydra.sweep.dir={out}"], cwd=tmp_path)
+    other = run_ddmr([*command, "run.n_runs=3"], cwd=tmp_path)
     assert other.returncode == 2 and "holds a study of another config" in other.stderr
     assert len(_trials(study)) == 5
 

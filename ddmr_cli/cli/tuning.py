@@ -39,14 +39,16 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from ddmr_cli.checks import integer, one_of
 from ddmr_cli.cli import io
+from ddmr_cli.engine.metrics import STEADY
 from ddmr_cli.errors import ConfigError
 
 log = logging.getLogger("ddmr")
 
-#: The deviation metric the tuning minimises (a run metric of :data:`ddmr_cli.engine.metrics.METRICS`).
-OBJECTIVE_METRIC = "deviation_mae"
-#: The second objective of ``tuning.objective=pareto``.
-CHATTERING_METRIC = "chattering"
+#: The deviation metric the tuning minimises: the steady-state mean deviation (after ``metrics.settle_time``, so
+#: the start-up transient from the offset pose, the same for every controller, does not decide the gains).
+OBJECTIVE_METRIC = "deviation_mae" + STEADY
+#: The second objective of ``tuning.objective=pareto``: the steady-state chattering (total variation of u / s).
+CHATTERING_METRIC = "chattering" + STEADY
 #: The constraint metric: fraction of steps with a wheel at +-U_max.
 SATURATION_METRIC = "saturation_fraction"
 OBJECTIVES = ("deviation", "pareto")
@@ -145,6 +147,9 @@ def evaluate_gains(cfg: DictConfig, threads: int = 0) -> TrialOutcome:
     excess = max(0.0, saturation - float(cfg.tuning.saturation_limit)) if not math.isnan(saturation) else 0.0
     violation = diverged / runs + excess
     reasons = []
+    if not math.isfinite(deviation) and diverged < runs:  # cannot happen after check_study: settle < duration
+        reasons.append(f"no finite {OBJECTIVE_METRIC}")
+        violation = max(violation, 1.0)
     if diverged:
         reasons.append(f"{diverged}/{runs} runs diverged")
     if excess > 0.0:
@@ -274,6 +279,10 @@ def check_study(cfg: DictConfig, overrides=()) -> list[Interval]:
     if h_first <= last and first <= h_last:
         raise ConfigError("tuning.held_out.base_seed", h_first, f"the held-out seeds {h_first}-{h_last} overlap the "
                                                                 f"tuning seeds {first}-{last} (run.base_seed, run.n_runs)")
+    settle, duration = float(cfg.metrics.settle_time), float(cfg.simulation.duration)
+    if OBJECTIVE_METRIC.endswith(STEADY) and not settle < duration:
+        raise ConfigError("metrics.settle_time", settle, f"must be < simulation.duration ({duration:g} s): the "
+                                                         f"objective {OBJECTIVE_METRIC} counts the steps after it")
     space = search_space(cfg, overrides)
     for name in t.scenarios:
         validate_config(scenario_config(cfg, name))

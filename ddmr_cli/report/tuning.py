@@ -57,9 +57,20 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
     return front
 
 
-def session_wall_time(info: dict) -> float:
-    """The study's wall time: the sum over its sessions (NaN when a session has none: it was killed)."""
-    return math.fsum(s.get("wall_time", math.nan) for s in info.get("sessions", []))
+def session_wall_time(info: dict, study) -> float:
+    """The study's wall time: the sum over its sessions. A killed session recorded no end: it counts until the
+    last trial it completed (the trials' own time stamps in the storage)."""
+    sessions = info.get("sessions", [])
+    done = [t.datetime_complete.timestamp() for t in study.get_trials(deepcopy=False) if t.datetime_complete]
+    total = 0.0
+    for i, s in enumerate(sessions):
+        if "wall_time" in s:
+            total += float(s["wall_time"])
+            continue
+        end = sessions[i + 1]["started"] if i + 1 < len(sessions) else math.inf
+        last = [t for t in done if s["started"] <= t < end]
+        total += (max(last) - s["started"]) if last else 0.0
+    return total
 
 
 def killed_sessions(info: dict) -> int:
@@ -97,7 +108,7 @@ class TuningReport:
             feasible = int((t["feasible"] == True).sum()) if "feasible" in t else 0  # noqa: E712 (object column)
             best = s.best()
             paper = self.paper_points[s.dir]
-            wall = session_wall_time(s.info)
+            wall = session_wall_time(s.info, s.study)
             sampler = "NSGA-II" if s.objective == "pareto" else "TPE"
             best_text = (f"{MM * best[0].values[0]:.4g} mm" if s.objective == "deviation" and best
                          else f"{len(best)} Pareto trials")
@@ -120,7 +131,8 @@ class TuningReport:
                  f"the mean `{info.get('metric', TU.OBJECTIVE_METRIC)}` over the runs and scenarios; a trial with a "
                  f"diverged run, a mean saturation fraction above {float(cfg.tuning.saturation_limit):g} or an "
                  f"unstable discrete-time loop is infeasible and scores above every feasible trial (docs/model.md §9). "
-                 f"Wall time: the sum over a study's sessions (a killed session counts as –); all studies: "
+                 f"Wall time: the sum over a study's sessions (a killed session until its last complete trial); all "
+                 f"studies: "
                  f"{fmt(total, 3)} s.", "",
                  md_table(["Controller", "Objective", "Sampler", "Trials", "Feasible", "Sessions", "Killed sessions",
                            "Wall time (s)", "Best (tuning seeds)", "Paper gains (tuning seeds)"], rows), "",
