@@ -179,8 +179,7 @@ def run_trial(cfg: DictConfig) -> float | list[float]:
     threads = int(cfg.run.threads) or 1  # trials run in parallel processes: one thread each unless asked
     started = time.perf_counter()
     outcome = evaluate_gains(cfg, threads)
-    sampled = [o for o in hc.overrides.task if o.lstrip("+~").partition("=")[0] in keys]
-    io.write_json(out / TRIAL_FILE, {"params": params, "overrides": sampled, "metric": OBJECTIVE_METRIC,
+    io.write_json(out / TRIAL_FILE, {"params": params, "overrides": list(hc.overrides.task), "metric": OBJECTIVE_METRIC,
                                      **outcome.as_dict(), "wall_time": time.perf_counter() - started})
     shown = ", ".join(f"{k.rsplit('.', 1)[-1]}={v:.4g}" for k, v in params.items())
     state = "feasible" if outcome.feasible else f"infeasible ({outcome.reason})"
@@ -364,14 +363,17 @@ def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
 # --- the study's files ----------------------------------------------------------------------------------------
 
 
-def read_study_info(sweep_dir: Path) -> dict | None:
-    path = Path(sweep_dir) / STUDY_FILE
-    if not path.is_file():
-        return None
+def _read_json(path: Path) -> dict | None:
+    """A JSON file, or None when it is missing or cannot be read."""
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
+
+
+def read_study_info(sweep_dir: Path) -> dict | None:
+    """A study dir's ``tuning.json``, or None."""
+    return _read_json(Path(sweep_dir) / STUDY_FILE)
 
 
 def _task_overrides(config: DictConfig) -> list[str]:
@@ -380,16 +382,21 @@ def _task_overrides(config: DictConfig) -> list[str]:
     return [str(o) for o in config.hydra.overrides.task if not _is_hydra_override(str(o))]
 
 
-def trial_dirs(sweep_dir: Path) -> dict[tuple[str, ...], tuple[Path, dict]]:
-    """Every trial dir with a ``trial.json``, by its sampled overrides (sorted)."""
-    out = {}
+def trial_dirs(sweep_dir: Path) -> list[tuple[frozenset, Path, dict]]:
+    """Every trial dir with a ``trial.json``: its job's overrides (the sampled gains and the fixed ones), dir, record."""
+    out = []
     for path in sorted((Path(sweep_dir) / TRIALS_DIR).glob(f"*/{TRIAL_FILE}")):
-        try:
-            record = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
-        out[tuple(sorted(record.get("overrides", [])))] = (path.parent, record)
+        record = _read_json(path)
+        if record is not None:
+            out.append((frozenset(record.get("overrides", [])), path.parent, record))
     return out
+
+
+def _trial_record(records, params: dict) -> tuple[Path | None, dict]:
+    """The dir and record of the job the sweeper launched with these sampled values (its overrides hold them as
+    the sweeper wrote them, ``key=repr(value)``)."""
+    wanted = {f"{k}={v}" for k, v in params.items()}
+    return next(((d, r) for overrides, d, r in records if wanted <= overrides), (None, {}))
 
 
 def trials_table(sweep_dir: Path, study) -> "pd.DataFrame":
@@ -400,8 +407,7 @@ def trials_table(sweep_dir: Path, study) -> "pd.DataFrame":
     records = trial_dirs(sweep_dir)
     rows = []
     for t in study.get_trials(deepcopy=False):
-        key = tuple(sorted(f"{k}={v}" for k, v in t.params.items()))
-        job_dir, rec = records.get(key, (None, {}))
+        job_dir, rec = _trial_record(records, t.params)
         row = {"number": t.number, "state": t.state.name, "killed": bool(t.user_attrs.get("killed", False))}
         values = t.values or []
         row.update({f"value_{i}": v for i, v in enumerate(values)})

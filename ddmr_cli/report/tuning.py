@@ -33,13 +33,12 @@ def is_tuning_dir(path) -> bool:
 
 def _plain_log_axes(ax) -> None:
     """Log axes labelled with plain numbers (8, 10, 20) rather than powers of ten."""
-    from matplotlib.ticker import FuncFormatter
+    from matplotlib.ticker import FuncFormatter, NullFormatter
 
-    plain = FuncFormatter(lambda v, _: f"{v:g}")
     for axis in (ax.xaxis, ax.yaxis):
         if axis.get_scale() == "log":
-            axis.set_major_formatter(plain)
-            axis.set_minor_formatter(plain)
+            axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            axis.set_minor_formatter(NullFormatter())
 
 
 def _order(studies):
@@ -159,11 +158,49 @@ class TuningReport:
                      md_table(["Controller", "Key", "Paper", "Tuned", "Tuned / paper", "Search space"], rows), "",
                      f"Table: {self.csv('gains.csv', csv_rows)}.", "")
 
+    def equal_chattering_section(self) -> None:
+        """The ranking at matched chattering: each controller's lowest deviation among the feasible trials (of
+        all its studies) whose chattering is at most a cap, the caps being the paper gains' chattering."""
+        controllers = sorted({s.controller for s in self.studies}, key=controller_rank)
+        pooled = {}
+        for ctrl in controllers:
+            import pandas as pd
+
+            frames = [self.tables[s.dir] for s in self.studies if s.controller == ctrl]
+            t = pd.concat(frames, ignore_index=True)
+            pooled[ctrl] = t[(t["state"] == "COMPLETE") & (t["feasible"] == True)]  # noqa: E712
+        caps = sorted({(self.paper_points[s.dir].chattering, s.controller) for s in self.studies
+                       if math.isfinite(self.paper_points[s.dir].chattering)})
+        caps = list(dict((round(c, 9), (c, who)) for c, who in caps).values())
+        rows, csv_rows = [], []
+        for cap, who in caps:
+            best = {}
+            for ctrl in controllers:
+                t = pooled[ctrl]
+                under = t[t[TU.CHATTERING_METRIC].astype(float) <= cap][TU.OBJECTIVE_METRIC].astype(float)
+                best[ctrl] = float(under.min()) if len(under) else math.nan
+                csv_rows.append({"chattering_cap": cap, "cap_from_paper_gains_of": who, "controller": ctrl,
+                                 "best_deviation": best[ctrl], "trials_under_cap": int(len(under))})
+            ranked = sorted((c for c in controllers if math.isfinite(best[c])), key=lambda c: -best[c])
+            rows.append([f"{fmt(cap, 3)} ({label_of(who)} at paper gains)",
+                         *(f"{MM * best[c]:.3g}" if math.isfinite(best[c]) else "none" for c in controllers),
+                         " > ".join(label_of(c) for c in ranked)])
+        if rows:
+            self.add("## Deviation at equal chattering (tuning seeds)", "",
+                     f"Deviation alone rewards gains at the edge of the stable region, whose voltage chatters. For a "
+                     f"like-for-like comparison: each controller's lowest `{TU.OBJECTIVE_METRIC}` (mm) among the "
+                     f"feasible trials of all its studies whose `{TU.CHATTERING_METRIC}` is at most a cap, the caps "
+                     f"being the paper gains' own chattering; on the tuning seeds (the trials' numbers), not held out.",
+                     "", md_table([f"{TU.CHATTERING_METRIC} cap (V/s)", *(label_of(c) for c in controllers),
+                                   "Order, largest deviation first"], rows), "",
+                     f"Table: {self.csv('equal_chattering.csv', csv_rows)}.", "")
+
     def held_out_section(self, held: Path, subreports: dict[str, Path]) -> None:
         data = {g: load(held / g) for g in TU.GAINS if (held / g).is_dir()}
         if not data:
             return
         metric = V.deviation_metric(data["tuned"])
+        chat = TU.CHATTERING_METRIC if TU.CHATTERING_METRIC in data["tuned"].metrics else "chattering"
         h = self.studies[0].config().tuning.held_out
         seeds = f"{int(h.base_seed)}–{int(h.base_seed) + int(h.n_runs) - 1}"
         self.add("## Held-out evaluation", "",
@@ -181,16 +218,16 @@ class TuningReport:
                     st = (job.summary.get("statistics") or {}) if job else {}
                     row = {"scenario": scenario, "controller": ctrl, "gains": g, "runs": st.get("runs"),
                            "diverged": st.get("diverged")}
-                    for m in (metric, "deviation_mae", "chattering", "saturation_fraction"):
+                    for m in (metric, "deviation_mae", chat, "saturation_fraction"):
                         row[f"{m}_mean"], row[f"{m}_sd"] = st.get(f"{m}_mean", math.nan), st.get(f"{m}_sd", math.nan)
                     csv_rows.append(row)
                     cells += [f"{fmt(MM * row[f'{metric}_mean'], 3)} ± {fmt(MM * row[f'{metric}_sd'], 2)}",
-                              fmt(row["chattering_mean"], 3), fmt(row["saturation_fraction_mean"], 2),
+                              fmt(row[f"{chat}_mean"], 3), fmt(row["saturation_fraction_mean"], 2),
                               str(row["diverged"] if row["diverged"] is not None else "–")]
                 rows.append(cells)
             headers = ["Controller"]
             for g in data:
-                headers += [f"{g}: {metric} (mm)", f"{g}: chattering (V/s)", f"{g}: saturation", f"{g}: diverged"]
+                headers += [f"{g}: {metric} (mm)", f"{g}: {chat} (V/s)", f"{g}: saturation", f"{g}: diverged"]
             self.add(f"### {scenario}", "", md_table(headers, rows), "")
             for g, d in data.items():
                 keys = [k for k in d.keys(scenario) if d.controller_of(k) == k]
@@ -305,6 +342,7 @@ class TuningReport:
         self.studies_section()
         self.gains_section()
         self.held_out_section(held, subreports)
+        self.equal_chattering_section()
         self.add("## Figures", "", f"![history]({self.rel(self.history_figure())})", "",
                  "Optimisation history: each study's objective per trial on the tuning seeds, the best so far, and "
                  "the paper's gains on the same seeds (dashed); infeasible trials as crosses above the feasible ones.",
