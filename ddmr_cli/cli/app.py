@@ -107,8 +107,8 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
     result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress, threads=threads,
                       bands=bool(cfg.run.bands))
     io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
-    io.write_csv(out / io.METRICS_CSV, result.rows())
-    io.write_csv(out / io.SEGMENTS_CSV, result.rows(segments=True))
+    io.write_csv(out / io.METRICS_CSV, result.iter_rows())
+    io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
     files = [io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV]
     if result.bands:
         io.write_bands(out / io.BANDS, result.bands)

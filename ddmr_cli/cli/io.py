@@ -71,16 +71,21 @@ def write_json(path: Path, data: Any) -> Path:
 
 
 def write_csv(path: Path, frame) -> Path:
-    """A pandas DataFrame, or a list of dicts with the same keys (written with the csv module, no pandas)."""
-    if isinstance(frame, list):
+    """A pandas DataFrame, or a list or iterator of dicts with the same keys (written with the csv module, no
+    pandas; an iterator is streamed, so its rows never all sit in memory)."""
+    if not hasattr(frame, "to_csv"):
         import csv
+        import itertools
 
         def _write(tmp: str) -> None:
+            rows = iter(frame)
+            first = next(rows, None)
             with open(tmp, "w", newline="", encoding="utf-8") as fh:
-                writer = csv.DictWriter(fh, fieldnames=list(frame[0]) if frame else [])
+                writer = csv.DictWriter(fh, fieldnames=list(first) if first is not None else [])
                 writer.writeheader()
-                writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in row.items()}
-                                 for row in frame)
+                if first is not None:
+                    writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in row.items()}
+                                     for row in itertools.chain([first], rows))
 
         return atomic_write(path, _write)
     return atomic_write(path, lambda tmp: frame.to_csv(tmp, index=False))

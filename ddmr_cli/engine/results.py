@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
@@ -86,8 +86,11 @@ class SimulationResult:
 
     def rows(self, segments: bool = False) -> list[dict]:
         """The rows of :meth:`to_pandas` as dicts (no pandas needed)."""
+        return list(self.iter_rows(segments))
+
+    def iter_rows(self, segments: bool = False) -> Iterator[dict]:
+        """The rows of :meth:`rows`, one at a time (what the CSV writers stream)."""
         segs = list(enumerate(self.segments)) if segments else [(0, "total")]
-        rows = []
         for i, seed in enumerate(self.seeds):
             for j, seg in segs:
                 row = {"controller": self.controller, "scenario": self.scenario, "seed": seed}
@@ -96,8 +99,7 @@ class SimulationResult:
                 row["status"] = "diverged" if self.diverged[i] else "ok"
                 row["divergence_time"] = float(self.divergence_time[i])
                 row.update({m: float(values[i, j]) for m, values in self.metrics.items()})
-                rows.append(row)
-        return rows
+                yield row
 
     def summary(self) -> dict[str, float]:
         """Across-seed mean and SD of every whole-run metric and its steady-state twin (Table 4's statistic), plus

@@ -37,7 +37,7 @@ from ddmr_cli.model.trajectory import StraightLine, Trajectory
 INTEGRATORS = ("euler", "rk4")
 #: bytes of standard normals per run and step buffered in a chunk (the only per-step buffer of unkept runs)
 _BYTES_PER_RUN_STEP = 8 * len(CHANNELS)
-CHUNK_BUDGET = 64 * 2**20
+CHUNK_BUDGET = 16 * 2**20
 MAX_CHUNK_STEPS = 4096
 MIN_CHUNK_STEPS = 64
 
