@@ -109,10 +109,13 @@ def test_thread_count_does_not_change_the_numbers():
 @pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
 def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
     script = textwrap.dedent("""
-        from ddmr_cli import PID, Simulation, simulate
+        import numpy as np
+        from ddmr_cli import paper_simulation, simulate
         from ddmr_cli.engine.kernels import stepper_for
-        simulate(make_simulation(controller=make_pid(), duration=0.01), [0])
-        stats = stepper_for("ddmr_cli.control.pid").run_chunk.stats
+        sim = paper_simulation("controller=pid", "simulation.duration=0.01")
+        simulate(sim, [0])
+        layout = repr(np.dtype(sim.controller.state_fields()).descr)
+        stats = stepper_for("ddmr_cli.control.pid", layout).run_chunk.stats
         print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))
     """)
     env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path)}
@@ -122,3 +125,32 @@ def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
     (hits1, misses1), (hits2, misses2) = (map(int, p.stdout.split()) for p in runs)
     assert (hits1, misses1) == (0, 1)  # compiled in the first process
     assert (hits2, misses2) == (1, 0)  # loaded in the second
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
+def test_a_warm_cache_keeps_controllers_of_one_module_apart(tmp_path):
+    """SMC-NDO and SMC-NDO-NNO share the law module smc.py but not their state layout (1 vs 10 neurons): with both
+    compiled into a warm cache, one process running SMC-NDO then SMC-NDO-NNO gets each one's own numbers (it
+    once got SMC-NDO's for both, numba's on-disk index conflating the two record types)."""
+    script = textwrap.dedent("""
+        import json, sys
+        from ddmr_cli import paper_simulation, simulate
+        out = {}
+        for c in sys.argv[1:]:
+            r = simulate(paper_simulation(f"controller={c}", "simulation.duration=0.3"), [0, 1])
+            out[c] = r.metric("deviation_mae").tolist() + r.metric("d_est_mae").tolist()
+        print(json.dumps(out))
+    """)
+    env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path)}
+
+    def run(*controllers):
+        p = subprocess.run([sys.executable, "-c", script, *controllers], capture_output=True, text=True, env=env,
+                           timeout=900)
+        assert p.returncode == 0, p.stderr[-2000:]
+        return json.loads(p.stdout.strip().splitlines()[-1])
+
+    fresh = {**run("smc_ndo"), **run("smc_ndo_nno")}  # each compiled in its own process: the cache is now warm
+    both = run("smc_ndo", "smc_ndo_nno")
+    assert both == fresh
+    assert fresh["smc_ndo"] != fresh["smc_ndo_nno"]

@@ -32,6 +32,7 @@ commands:
                             ddmr run -m +experiment=table4            # Table 4: 4 controllers x 2 scenarios
                             ddmr run -m controller=smc,smc_ndo controller.switching_gain=4,8,12
                             ddmr run -m +experiment=table4 launcher=slurm cluster.partition=compute
+                            ddmr run -m +tune=smc_ndo                 # tune gains (Optuna); ddmr report it
                           add report=true to write the report when the run or sweep ends
   explain KEY [OVERRIDES] a config key's meaning, unit, value, valid range and docs/model.md section
   report [PATH] [--out DIR] [--margin 0.1mm]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
@@ -45,7 +46,7 @@ _INFO_FLAGS = frozenset({"--help", "-h", "--hydra-help", "--version", "--info", 
                          "--shell-completion", "-sc"})
 _VALUE_FLAGS = frozenset({"--cfg", "-c", "--package", "-p", "--info", "-i", "--config-path", "-cp", "--config-name",
                           "-cn", "--config-dir", "-cd", "--experimental-rerun", "--shell-completion", "-sc"})
-GROUPS = ("robot", "terrain", "controller", "scenario", "trajectory", "experiment", "launcher")
+GROUPS = ("robot", "terrain", "controller", "scenario", "trajectory", "experiment", "launcher", "tune", "objective")
 
 
 def _split_args(argv: Sequence[str]) -> tuple[list[str], dict[str, str | bool]]:
@@ -143,6 +144,7 @@ class Launch:
     plan: tuple[dict, ...] = ()
     report: bool = False
     margin: float | None = None
+    study: bool = False
 
 
 def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: str = "config") -> Launch:
@@ -173,7 +175,12 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             Margin.parse(margin)
         except ValueError as exc:
             raise UsageError(f"report.margin={margin}: {exc}") from None
-        plan = sweep.plan_jobs(overrides, base.hydra) if multirun else [{"dir": "", "overrides": overrides}]
+        from ddmr_cli.cli import tuning
+
+        study = multirun and tuning.is_study(base)
+        session = tuning.prepare_study(base, overrides) if study else []  # checks; the rest of the budget
+        plan = [] if study else (sweep.plan_jobs(overrides, base.hydra) if multirun else
+                                 [{"dir": "", "overrides": overrides}])
         for job in plan:
             cfg = compose_config(job["overrides"], config_name) if multirun else base
             validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here, not in a job
@@ -183,10 +190,11 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         raise UsageError(str(exc)) from None
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise UsageError(_missing_plugin(exc, overrides) or _explain(exc, overrides)) from None
-    pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}"]
-    if multirun:
+    pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}", *session]
+    if multirun and not study:
         print(f"ddmr: sweep of {len(plan)} jobs validated -> {out_dir}", file=sys.stderr)
-    return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin)
+    return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin,
+                  study)
 
 
 def _normalise(argv: list[str]) -> list[str]:
@@ -204,7 +212,11 @@ def finish(launch: Launch) -> int:
     """The exit status from the output dir as it is on disk, and the report when asked for."""
     from ddmr_cli.cli import io, sweep
 
-    if launch.multirun:
+    if launch.study:
+        from ddmr_cli.cli.tuning import finish as finish_study
+
+        status = finish_study(launch.out_dir)
+    elif launch.multirun:
         state = sweep.read_state(launch.out_dir, plan=list(launch.plan))
         status = 0 if state.ok else EXIT_FAILED
     else:
@@ -220,7 +232,12 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
     from ddmr_cli.report import build_report
 
     try:
-        written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
+        from ddmr_cli.report import tuning
+
+        if tuning.is_tuning_dir(path):  # studies: held-out runs at paper and tuned gains, then their report
+            written = tuning.build(path, out, margin)
+        else:
+            written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
     except (DDMRError, FileNotFoundError) as exc:
         print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return failure
@@ -316,7 +333,7 @@ def run_help(overrides: list[str], config_name: str = "config") -> int:
     print("\n== Config groups (group=option; * = composed) ==")
     for group in GROUPS:
         options = [f"{o}*" if choices.get(group) == o else o for o in group_options(group)]
-        prefix = "+" if group == "experiment" else ""
+        prefix = "+" if group in ("experiment", "tune") else ""
         print(f"  {prefix}{group}: {', '.join(options)}")
     docs = key_docs(cfg)
     print(f"\n== Keys of the composed config ({len(docs)}): key  value  [unit]  meaning ==")

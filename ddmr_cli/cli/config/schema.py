@@ -317,6 +317,38 @@ class ReportConfig:
                                   range="null, a length (0.1mm, 1e-4) or a percentage (5%)", model=7)
 
 
+@dataclass
+class HeldOutConfig:
+    base_seed: int = param(unit="1", help="first held-out seed of the tuned-gains evaluation (ddmr report on a study)",
+                           range="integer >= 0; the held-out seeds must not overlap the tuning seeds", model=9)
+    n_runs: int = param(unit="1", help="held-out seeds per controller and scenario", range="integer >= 1", model=9)
+
+
+@dataclass
+class TuningConfig:
+    """A gain-tuning study (``ddmr run -m +tune=<controller>``; docs/model.md §9). The search space is the Optuna
+    sweeper's ``hydra.sweeper.params``; the trial's seeds are ``run.base_seed .. + run.n_runs - 1``."""
+
+    controller: str = param(unit="", help="the controller option tuned (conf/controller/<name>.yaml)", model=9)
+    objective: str = param(unit="", help="deviation: minimise the mean deviation (TPE); pareto: deviation against "
+                           "chattering (NSGA-II), a Pareto front", range="deviation | pareto", model=9)
+    n_trials: int = param(unit="1", help="the study's budget: trials in all (a resumed study runs the rest)",
+                          range="integer >= 1", model=9)
+    batch: int = param(unit="1", help="trials asked of the sampler at once and launched together (the launcher runs "
+                       "them in parallel); fixed, so the sampled gains do not depend on the launcher",
+                       range="integer >= 1", model=9)
+    seed: int = param(unit="1", help="seed of the Optuna sampler (a resumed study continues with seed + trials done)",
+                      range="integer >= 0", model=9)
+    saturation_limit: float = param(unit="1", help="constraint: mean fraction of steps with a wheel at +-U_max; a "
+                                    "trial above it (or with a diverged run) is infeasible and penalised",
+                                    range="0 <= limit < 1", model=9)
+    scenarios: Dict[str, ScenarioConfig] = param(unit="", help="the scenarios every trial simulates (the objective "
+                                                 "is the mean over them)", range="at least one", model=9,
+                                                 factory=dict)
+    held_out: HeldOutConfig = param(unit="", help="held-out seeds of the evaluation at tuned gains", model=9,
+                                    factory=HeldOutConfig)
+
+
 #: documentation of the launcher presets' ``cluster`` keys (conf/launcher/*.yaml), not model numbers
 CLUSTER_KEYS = MappingProxyType({
     "cpus": ("1", "cpus: processes for the joblib launcher (-1 = all cores), cpus per job for submitit and ray"),
@@ -349,6 +381,8 @@ class DDMRConfig:
                                     entries=CLUSTER_KEYS, factory=dict)
     report: ReportConfig = param(unit="", help="the report written at the end of a run or sweep",
                                  factory=ReportConfig)
+    tuning: Optional[TuningConfig] = param(unit="", help="gain-tuning study set by +tune=<controller> (null: none)",
+                                           model=9)
 
 
 def register_configs() -> None:
