@@ -205,3 +205,49 @@ def test_the_controllers_run_at_the_control_period():
     sim.validate()
     assert sim.control_steps == 4 and sim.control_dt == pytest.approx(0.004)
     assert paper_simulation("controller=smc_ndo_nno", "control.rate=100").control_steps == 10
+
+
+# --- the cost of a control step ---------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def counts():
+    from ddmr_cli.engine.cost import operation_counts
+
+    return operation_counts(["pid", "smc_ndo_nno"])
+
+
+def test_operation_counts_match_the_laws_read_by_hand(counts):
+    # PID per step (pid.py): e = w_d - w (2 add); e' = (e - e_prev) * (1/dt) (2 add, 2 div, 2 mul, not at step 0);
+    # u = kp e + ki I + kd e' (6 mul, 4 add); update: dt * (w_d - w) added to I (2 mul, 4 add). 200 steps.
+    pid = counts["pid"]
+    assert pid["add"] == pytest.approx(12 - 2 / 200) and pid["mul"] == pytest.approx(10 - 2 / 200)
+    assert pid["div"] == pytest.approx(2 - 2 / 200) and pid["transcendental"] == 0
+    nno = counts["smc_ndo_nno"]
+    assert nno["transcendental"] == pytest.approx(10)  # one exp per neuron (conf: n_neurons = 10), both wheels share it
+    assert nno["add"] > 4 * 10 and nno["mul"] > 6 * 10  # basis, estimate and update: a few per neuron and wheel
+
+
+def test_m4f_estimate_is_the_stated_cycle_model():
+    from ddmr_cli.engine.cost import M4F_CYCLES, M4F_OVERHEAD, m4f_cycles
+
+    ops = {"add": 10, "mul": 5, "div": 2, "cmp": 3, "transcendental": 1}
+    expected = M4F_OVERHEAD * (10 * M4F_CYCLES["add"] + 5 * M4F_CYCLES["mul"] + 2 * M4F_CYCLES["div"]
+                               + 3 * M4F_CYCLES["cmp"] + M4F_CYCLES["transcendental"])
+    assert m4f_cycles(ops) == pytest.approx(expected)
+
+
+def test_the_compiled_step_timing_runs_the_laws():
+    from ddmr_cli import paper_controller, paper_robot
+    from ddmr_cli.engine.cost import control_steps, inputs, time_per_step
+    from ddmr_cli.model.robot import NominalModel
+
+    pid = paper_controller("pid")
+    nominal = NominalModel.from_robot(paper_robot())
+    w, wd, wdd = inputs(50, 1e-3)
+    state = pid.initial_state(1)
+    total = control_steps(pid.laws.start, pid.laws.command, pid.laws.update, pid.law_parameters(nominal, 1e-3),
+                          state, w, wd, wdd)
+    e = wd - w  # the proportional part dominates: u ~ kp e per wheel
+    assert abs(total) > 0 and np.sign(total) == np.sign(e.sum())
+    fastest, median = time_per_step(pid, nominal, 1e-3, n=200, repeats=3)
+    assert 0 < fastest <= median < 1e5
