@@ -16,7 +16,7 @@ from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.actuator import Actuator
 from ddmr_cli.model.sensor import NOISE_CHANNELS, SENSOR_FIELDS, Sensor
 
-SHORT = ("terrain=paper", "simulation.duration=0.6")
+SHORT = ("terrain=paper", "simulation.duration=0.3")
 #: every effect on at once: encoder wheels with speed noise and a noisy pose fix, the realistic driver, 250 Hz
 EVERYTHING = ("sensor=encoder", "sensor.pose=noisy", "sensor.speed_std=0.05", "sensor.speed_filter=0.004",
               "actuator=realistic", "control.rate=250")
@@ -164,7 +164,8 @@ def test_sensor_noise_leaves_the_disturbance_streams_alone():
     assert np.ptp(ideal["d_true_right"]) > 0.1  # the roughness noise is really there (flat zone: 0.1 rad/s^2)
 
 
-@pytest.mark.parametrize("effects", [EVERYTHING, ("sensor=noisy", "actuator.delay=0.003", "control.rate=500")])
+@pytest.mark.parametrize("effects", [EVERYTHING, pytest.param(("sensor=noisy", "actuator.delay=0.003", "control.rate=500"),
+                                                                marks=pytest.mark.slow)])
 def test_determinism_with_every_effect_on(effects, monkeypatch):
     batch = run_sim(*effects, seeds=(0, 1, 2, 3), keep=(2,), threads=1)
     alone = run_sim(*effects, seeds=(2,), keep=(2,))
@@ -251,3 +252,14 @@ def test_the_compiled_step_timing_runs_the_laws():
     assert abs(total) > 0 and np.sign(total) == np.sign(e.sum())
     fastest, median = time_per_step(pid, nominal, 1e-3, n=200, repeats=3)
     assert 0 < fastest <= median < 1e5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("bad", ["control.rate=300", "actuator.delay=0.0025", "sensor=encoder sensor.counts_per_rev=0"])
+def test_the_cli_refuses_bad_realism_settings_in_one_line(tmp_path, bad):
+    from conftest import run_ddmr
+
+    proc = run_ddmr(["run", *bad.split(), "run.n_runs=1", "hydra.run.dir=out"], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and proc.stderr.startswith("ddmr: error: ")
+    assert not (tmp_path / "out").exists()
