@@ -5,7 +5,9 @@ Prints the machine line, then
    controller, on every core, as plain Python (the fallback), and the compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
 3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it;
-4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only).
+4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only);
+5. the cost of a control step per controller: ns of its laws alone, operation counts and a Cortex-M4F estimate
+   (:mod:`ddmr_cli.engine.cost`; printed after section 1 when ``--skip-e2e``).
 ``--quick`` shrinks every figure (CI runs it so this script cannot rot).
 """
 
@@ -124,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"   warm-up: first run with empty caches {cold:.2f} s (compilation), with the on-disk cache {warm:.2f} s "
           "(every later process)")
     if args.skip_e2e:
+        control_step_cost(quick)
         return 0
 
     work = Path(tempfile.mkdtemp(prefix="ddmr-bench-"))
@@ -152,7 +155,29 @@ def main(argv: list[str] | None = None) -> int:
         print(f"   wall {wall:.2f} s, peak memory {peak:.0f} MB   (target < 60 s and < 2048 MB for 10,000 seeds)")
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    control_step_cost(quick)
     return 0
+
+
+def cost_lines(rows: list[dict]) -> list[str]:
+    """The cost-per-step table as text lines (also the report's, :mod:`ddmr_cli.report.build`)."""
+    lines = [f"   {'controller':<14}{'ns/step min':>12}{'median':>9}{'flops':>8}{'exp/tanh':>10}{'div':>6}"
+             f"{'M4F cycles':>12}{'M4F us':>8}{'1 kHz budget':>14}"]
+    for r in rows:
+        lines.append(f"   {r['controller']:<14}{r['ns_min']:>12.1f}{r['ns_median']:>9.1f}{r['flops']:>8.1f}"
+                     f"{r['transcendental']:>10.1f}{r['divisions']:>6.1f}{r['m4f_cycles']:>12.0f}"
+                     f"{r['m4f_us']:>8.2f}{100 * r['budget_1khz']:>13.2f}%")
+    return lines
+
+
+def control_step_cost(quick: bool) -> None:
+    """Section 5: the cost of one control step of each controller's laws (:mod:`ddmr_cli.engine.cost`)."""
+    from ddmr_cli.engine.cost import assumptions, cost_table
+
+    print("\n5. cost of a control step (the controller's command + update laws alone, compiled, one run, warm)")
+    rows = cost_table(list(CONTROLLERS), repeats=5 if quick else 30, n=200 if quick else 2000)
+    print("\n".join(cost_lines(rows)))
+    print(f"   {assumptions()}")
 
 
 if __name__ == "__main__":

@@ -14,7 +14,9 @@ run and step, on both wheels (right, left):
     Advance the state by one step, given the applied voltage ``u``, the command ``uc`` and whether each wheel
     saturated.
 
-``p`` is the named tuple :meth:`WheelController.law_parameters` returns and ``st`` one record of the structured
+The laws run at the control instants (every plant step unless ``control.rate`` is set; docs/model.md §10) on the
+measured wheel speeds, so their ``dt`` is the control period. ``p`` is the named tuple
+:meth:`WheelController.law_parameters` returns and ``st`` one record of the structured
 array whose fields :meth:`WheelController.state_fields` lists. Adding a controller is one module with a
 subclass and its three laws, plus a YAML file in ``conf/controller`` (see docs/extending.md): the engine,
 the compile cache, determinism and validation come with it.

@@ -9,6 +9,11 @@ import numpy as np
 #: the fields of one run's engine state (a structured record)
 RUN_FIELDS = [("x", "f8"), ("y", "f8"), ("theta", "f8"), ("distance", "f8"), ("w", "f8", 2), ("w_d_prev", "f8", 2),
               ("noise", "f8", 3), ("divergence_step", "i8")]
+#: what the zero-order hold keeps between control instants (docs/model.md §10): the controller's command, the
+#: voltage it sent (saturated, PWM-quantised), whether it saturated (1/0: numba has no nested bool arrays), its sliding variable and estimates, and the
+#: wheel-speed references
+HOLD_FIELDS = [("u_command", "f8", 2), ("u_sent", "f8", 2), ("saturated", "i8", 2), ("s", "f8", 2),
+               ("d_ndo", "f8", 2), ("d_nn", "f8", 2), ("w_d", "f8", 2)]
 
 
 class World(NamedTuple):
@@ -37,3 +42,7 @@ class World(NamedTuple):
     zone_settle_steps: int  # steps after a zone's or phase's entry before its steps are steady there
     bands: bool  # record every run's band channels on the band grid
     band_stride: int  # steps between band grid points
+    control_steps: int  # plant steps per control period (control.rate; 1: control at every step)
+    control_dt: float  # the control period [s]
+    sensor: object  # the sensor's SensorParameters (docs/model.md §10)
+    actuator: object  # the actuator's ActuatorParameters

@@ -42,6 +42,9 @@ class NoiseStreams:
         One per run.
     """
 
+    #: normals per run and step
+    channels = len(CHANNELS)
+
     def __init__(self, seeds: Sequence[int]) -> None:
         self.generators = [np.random.default_rng(int(s)) for s in seeds]
 
@@ -53,10 +56,27 @@ class NoiseStreams:
         return out
 
     def next_chunk(self, n_steps: int, out: np.ndarray | None = None) -> np.ndarray:
-        """The next ``n_steps`` normals per run and channel, run-major: shape ``(n_runs, n_steps, 3)``."""
-        shape = (len(self.generators), n_steps, len(CHANNELS))
+        """The next ``n_steps`` normals per run and channel, run-major: shape ``(n_runs, n_steps, channels)``."""
+        shape = (len(self.generators), n_steps, self.channels)
         if out is None or out.shape != shape:
             out = np.empty(shape)
         for i, rng in enumerate(self.generators):
             rng.standard_normal(out=out[i])
         return out
+
+
+#: the spawn key that derives a run's sensor stream from its seed (child 1 of ``SeedSequence(seed)``)
+SENSOR_STREAM = 1
+
+
+class SensorNoise(NoiseStreams):
+    """The sensor's standard normals (docs/model.md §10), one generator per run of its own:
+    ``default_rng(SeedSequence(seed, spawn_key=(SENSOR_STREAM,)))``, independent of the seed's disturbance
+    stream, which therefore stays the same whether or not a sensor is noisy. ``channels`` normals per plant
+    step (:data:`ddmr_cli.model.sensor.NOISE_CHANNELS`), drawn only when a sensor is noisy.
+    """
+
+    def __init__(self, seeds: Sequence[int], channels: int) -> None:
+        self.channels = int(channels)
+        self.generators = [np.random.default_rng(np.random.SeedSequence(int(s), spawn_key=(SENSOR_STREAM,)))
+                           for s in seeds]

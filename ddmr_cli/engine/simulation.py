@@ -22,15 +22,17 @@ from ddmr_cli.checks import finite, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
-from ddmr_cli.engine.batch import RUN_FIELDS, World
+from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import stepper_for
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator
-from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, ou_coefficients
+from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SERIES_CHANNELS, SimulationResult
 from ddmr_cli.errors import ConfigError
+from ddmr_cli.model.actuator import Actuator, actuator_fields
 from ddmr_cli.model.kinematics import inverse
 from ddmr_cli.model.robot import NominalModel, Robot
 from ddmr_cli.model.scenario import Scenario
+from ddmr_cli.model.sensor import NOISE_CHANNELS, SENSOR_FIELDS, Sensor
 from ddmr_cli.model.terrain import Terrain
 from ddmr_cli.model.trajectory import StraightLine, Trajectory
 
@@ -71,6 +73,12 @@ class Simulation:
         Steady-state metrics (``<metric>_ss``) count the steps from this time [s] on (docs/model.md §7).
     zone_settle_time : float
         ... and per zone (phase) also from this long [s] after the run entered it.
+    sensor : Sensor
+        What the controller measures (docs/model.md §10; ``ideal``: the truth).
+    actuator : Actuator
+        PWM, delay and driver lag between the controller and the motor (docs/model.md §10).
+    control_rate : float or None
+        The controller's rate [Hz], dividing the plant's ``1 / dt``; None: every plant step.
     """
 
     controller: WheelController
@@ -87,10 +95,36 @@ class Simulation:
     divergence_bound: float
     settle_time: float
     zone_settle_time: float
+    sensor: Sensor
+    actuator: Actuator
+    control_rate: float | None
 
     @property
     def n_steps(self) -> int:
         return int(round(self.duration / self.dt))
+
+    @property
+    def control_steps(self) -> int:
+        """Plant steps per control period (1 when the controller runs at every plant step); ConfigError on
+        ``control.rate`` when it is above the plant rate ``1 / dt`` or does not divide it."""
+        if self.control_rate is None:
+            return 1
+        rate, plant_rate = positive("control.rate", self.control_rate), 1.0 / float(self.dt)
+        ratio = plant_rate / rate
+        m = int(round(ratio))
+        if ratio < 1.0 - 1e-9:
+            raise ConfigError("control.rate", self.control_rate,
+                              f"must be <= the plant rate 1/simulation.dt = {plant_rate:g} Hz")
+        if abs(ratio - m) > 1e-9 * ratio:
+            raise ConfigError("control.rate", self.control_rate, f"must divide the plant rate 1/simulation.dt = "
+                                                                 f"{plant_rate:g} Hz ({ratio:.6g} plant steps per "
+                                                                 f"control period is not a whole number)")
+        return m
+
+    @property
+    def control_dt(self) -> float:
+        """The control period [s]: ``control_steps * dt``."""
+        return self.control_steps * float(self.dt)
 
     def validate(self) -> None:
         """Check what the parts cannot check alone; raise ConfigError naming the key.
@@ -120,7 +154,15 @@ class Simulation:
         if dt * pole >= limit:
             raise ConfigError("simulation.dt", self.dt, f"must be < {limit / pole:.3g} s for {self.integrator} with "
                                                         f"the plant's fastest pole = {pole:.3g} 1/s")
-        self.controller.check_step(NominalModel.from_robot(self.robot), dt, self.integrator)
+        m = self.control_steps
+        self.actuator.delay_steps(dt)
+        try:  # the controller's own loops run at the control period
+            self.controller.check_step(NominalModel.from_robot(self.robot), m * dt, self.integrator)
+        except ConfigError as exc:
+            if m == 1:
+                raise
+            raise ConfigError("control.rate", self.control_rate,
+                              f"the control period {m * dt:g} s {exc.rule}") from None
 
 
 def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
@@ -155,7 +197,9 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
         rk4=sim.integrator == "rk4", divergence_bound=float(sim.divergence_bound), hp=hp, hp_zi=hp_zi,
         phase_base=phase_base, settle_steps=int(round(sim.settle_time / dt)),
         zone_settle_steps=int(round(sim.zone_settle_time / dt)), bands=bands is not None,
-        band_stride=bands.stride if bands is not None else 1)
+        band_stride=bands.stride if bands is not None else 1, control_steps=sim.control_steps,
+        control_dt=sim.control_dt, sensor=sim.sensor.law_parameters(sim.control_dt),
+        actuator=sim.actuator.law_parameters(dt, sim.robot.max_voltage))
 
 
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
@@ -189,14 +233,17 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     n_runs, n_steps, dt = len(seeds), sim.n_steps, float(sim.dt)
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
     controller = sim.controller
-    params = controller.law_parameters(NominalModel.from_robot(sim.robot), dt)
+    params = controller.law_parameters(NominalModel.from_robot(sim.robot), sim.control_dt)
     layout = repr(np.dtype(controller.state_fields()).descr)  # one compiled copy per state layout (kernels.py)
     loop = stepper_for(controller.laws.__name__, layout).run_chunk
     acc = MetricAccumulator(n_runs, dt, sim.terrain.names, sim.scenario.names)
     band_acc = BandAccumulator(n_steps, dt) if bands else None
     world = _world(sim, n_steps, acc.hp, acc.hp_zi, acc.phase_base, band_acc)
     noise = NoiseStreams(seeds)
-    runs = np.zeros(n_runs, dtype=np.dtype(RUN_FIELDS))
+    sensor_noise = SensorNoise(seeds, len(NOISE_CHANNELS)) if world.sensor.noisy else None
+    xs = np.zeros((n_runs, 1, len(NOISE_CHANNELS)))
+    fields = RUN_FIELDS + HOLD_FIELDS + SENSOR_FIELDS + actuator_fields(world.actuator.delay_steps)
+    runs = np.zeros(n_runs, dtype=np.dtype(fields))
     runs["x"], runs["y"], runs["theta"] = (float(v) for v in sim.initial_pose)
     runs["w"] = _initial_wheel_speeds(sim)
     runs["noise"] = noise.initial_state()
@@ -207,7 +254,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     series = np.zeros((len(keep_idx), n_steps if keep_idx else 1, len(SERIES_CHANNELS)))
     slot = np.full(n_runs, -1, dtype=np.int64)
     slot[keep_idx] = np.arange(len(keep_idx))
-    bytes_per_run_step = _BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
+    bytes_per_run_step = (_BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
+                          + (8 * len(NOISE_CHANNELS) if sensor_noise is not None else 0))
     chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (bytes_per_run_step * n_runs))))
     plant, xi = sim.robot.plant(), None
     n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
@@ -219,10 +267,12 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
             while k0 < n_steps:
                 n = min(chunk, n_steps - k0)
                 xi = noise.next_chunk(n, xi)
+                if sensor_noise is not None:
+                    xs = sensor_noise.next_chunk(n, xs)
                 first, end = band_acc.grid_range(k0, n) if band_acc is not None else (0, 0)
                 band_buffer = np.empty((n_runs, end - first, len(BAND_CHANNELS)))
-                args = (k0, n, world, plant, params, runs, controller_state, xi, acc.sums, accumulators, series, slot,
-                        band_buffer, first)
+                args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
+                        slot, band_buffer, first)
                 if pool is None:
                     loop(*args, 0, n_runs)
                 else:

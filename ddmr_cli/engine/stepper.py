@@ -1,11 +1,16 @@
-"""The step loop: every run of a batch advanced by a chunk of steps, each run on its own (docs/model.md §4-5).
+"""The step loop: every run of a batch advanced by a chunk of steps, each run on its own (docs/model.md §4-5, §10).
 
-Per step: measure the pose error (2), run the outer loop (3) and inverse kinematics (4)-(5), difference the
-wheel-speed reference, run the wheel controller's ``command`` law, saturate ``u``, form this step's
-disturbances (terrain zone and scenario phase by the distance travelled, or the phase by time, the OU processes),
-compute the plant's acceleration (8), run the controller's ``update`` law, add the step to the metrics (7) and,
-on the band grid, to the seed bands, record it if the run's series is kept, and integrate (explicit Euler or
-RK4), ``u`` and the disturbances held over the step.
+Per plant step: measure the true pose error (2) for the metrics; at a control instant (every
+``world.control_steps`` plant steps, ``control.rate``), read the sensor (truth, encoders or noise: the controller
+sees only this), run the outer loop (3) and inverse kinematics (4)-(5) on the measured pose, difference the
+wheel-speed reference over the control period, run the wheel controller's ``command`` law on the measured wheel
+speeds, saturate and PWM-quantise ``u`` and run its ``update`` law; between control instants all of it is held
+(zero-order hold). Then the actuator (delay, driver lag) gives the motor's voltage, this step's disturbances are
+formed (terrain zone and scenario phase by the distance travelled, or the phase by time, the OU processes), the
+plant's acceleration (8) computed, the step added to the metrics (7) (on the truth) and, on the band grid, to the
+seed bands, recorded if the run's series is kept, and integrated (explicit Euler or RK4), ``u`` and the
+disturbances held over the step. With the ideal sensor and actuator and control at every step this is the
+paper's loop, number for number.
 
 Runs are independent scalar loops (no BLAS, nothing couples runs), so seed k gives bit-identical numbers alone
 or inside any batch, in any chunking and with any thread count. This module is the template of the compiled
@@ -27,16 +32,17 @@ from ddmr_cli.engine.integrators import euler, rk4
 from ddmr_cli.engine.metrics import accumulate
 from ddmr_cli.engine.noise import ou_step
 from ddmr_cli.engine.results import record
+from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.kinematics import deviation, inverse, pose_error
 from ddmr_cli.model.robot import saturate, wheel_acceleration
 from ddmr_cli.model.scenario import damping_scale
 from ddmr_cli.model.terrain import zone_of
 
 @law
-def run_chunk(k0, n_steps, world, plant, params, runs, controller_state, xi, sums, accumulators, series,
+def run_chunk(k0, n_steps, world, plant, params, runs, controller_state, xi, xs, sums, accumulators, series,
               series_slot, bands, band_first, first_run, end_run):
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; ``xi[r, j]`` are
-    run r's standard normals.
+    run r's standard normals, ``xs[r, j]`` its sensor normals (``xs`` is a dummy unless the sensor is noisy).
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
     ``runs``, ``controller_state`` and ``accumulators`` (one record per run) are updated in place; kept runs
@@ -45,36 +51,59 @@ def run_chunk(k0, n_steps, world, plant, params, runs, controller_state, xi, sum
     so threads can advance disjoint blocks of runs at once.
     """
     for r in range(first_run, end_run):
-        run_steps(k0, n_steps, world, plant, params, r, runs[r], controller_state[r], xi, sums, accumulators[r],
+        run_steps(k0, n_steps, world, plant, params, r, runs[r], controller_state[r], xi, xs, sums, accumulators[r],
                   series, series_slot[r], bands, band_first)
 
 
 @law
-def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, series, slot, bands, band_first):
+def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, series, slot, bands, band_first):
     """One run's steps ``k0 .. k0 + n_steps - 1`` (the loop the module docstring describes)."""
+    sen, act, m = world.sensor, world.actuator, world.control_steps
     if k0 == 0:
         controller_start(params, st, run["w"][0], run["w"][1])
+        sensor.start(sen, run, run["w"][0], run["w"][1])
     x, y, theta, dist = run["x"], run["y"], run["theta"], run["distance"]
     w_R, w_L = run["w"][0], run["w"][1]
     wdp_R, wdp_L = run["w_d_prev"][0], run["w_d_prev"][1]
     n_R, n_L, n_u = run["noise"][0], run["noise"][1], run["noise"][2]
+    # what the zero-order hold keeps between control instants
+    uc_R, uc_L, us_R, us_L = run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1]
+    sat_R, sat_L, s_R, s_L = run["saturated"][0] != 0, run["saturated"][1] != 0, run["s"][0], run["s"][1]
+    ndo_R, ndo_L, nn_R, nn_L = run["d_ndo"][0], run["d_ndo"][1], run["d_nn"][0], run["d_nn"][1]
+    wd_R, wd_L = run["w_d"][0], run["w_d"][1]
     for j in range(n_steps):
         k = k0 + j
         x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
                                      world.reference[k, 3], world.reference[k, 4])
-        # measure (2), outer loop (3), inverse kinematics (4)-(5); w_d' by backward difference (4)
+        # the true pose error (2), for the metrics
         e_x, e_y, e_th = pose_error(x, y, theta, x_r, y_r, th_r)
         dev = deviation(x, y, x_r, y_r)
-        v_d, om_d = kanayama(world.gains, e_x, e_y, e_th, v_r, om_r)
-        wd_R, wd_L = inverse(v_d, om_d, plant.wheel_radius, plant.half_track)
-        wdd_R = 0.0 if k == 0 else (wd_R - wdp_R) * (1.0 / world.dt)
-        wdd_L = 0.0 if k == 0 else (wd_L - wdp_L) * (1.0 / world.dt)
-        wdp_R, wdp_L = wd_R, wd_L
-        # wheel controller (6) and the driver's voltage limit
-        uc_R, uc_L, s_R, s_L, ndo_R, ndo_L, nn_R, nn_L = controller_command(
-            params, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L)
-        u_R, sat_R = saturate(uc_R, plant.max_voltage)
-        u_L, sat_L = saturate(uc_L, plant.max_voltage)
+        if k % m == 0:
+            # a control instant: read the sensor (§10); outer loop (3) and inverse kinematics (4)-(5) on the
+            # measured pose; w_d' by backward difference over the control period (4)
+            kc = k // m
+            mw_R, mw_L, c_ex, c_ey, c_eth = w_R, w_L, e_x, e_y, e_th
+            if not sen.ideal:
+                mw_R, mw_L, mx, my, mth = sensor.measure(sen, run, x, y, theta, w_R, w_L, xs[r, j if sen.noisy else 0],
+                                                         plant.wheel_radius, plant.half_track)
+                c_ex, c_ey, c_eth = pose_error(mx, my, mth, x_r, y_r, th_r)
+            v_d, om_d = kanayama(world.gains, c_ex, c_ey, c_eth, v_r, om_r)
+            wd_R, wd_L = inverse(v_d, om_d, plant.wheel_radius, plant.half_track)
+            wdd_R = 0.0 if kc == 0 else (wd_R - wdp_R) * (1.0 / world.control_dt)
+            wdd_L = 0.0 if kc == 0 else (wd_L - wdp_L) * (1.0 / world.control_dt)
+            wdp_R, wdp_L = wd_R, wd_L
+            # wheel controller (6) on the measured speeds, the driver's voltage limit and PWM (§10)
+            uc_R, uc_L, s_R, s_L, ndo_R, ndo_L, nn_R, nn_L = controller_command(
+                params, st, kc, mw_R, mw_L, wd_R, wd_L, wdd_R, wdd_L)
+            us_R, sat_R = saturate(uc_R, plant.max_voltage)
+            us_L, sat_L = saturate(uc_L, plant.max_voltage)
+            if act.pwm:
+                us_R, us_L = actuator.pwm(us_R, act.pwm_step), actuator.pwm(us_L, act.pwm_step)
+            controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
+            if k == 0:
+                actuator.start(act, run, us_R, us_L)
+        # the motor's voltage: the held command, delayed and lagged (§10)
+        u_R, u_L = actuator.apply(act, run, k, us_R, us_L)
         # this step's disturbances, held over it (5)
         n_R = ou_step(world.ou_a[0], world.ou_b[0], n_R, xi[r, j, 0])
         n_L = ou_step(world.ou_a[1], world.ou_b[1], n_L, xi[r, j, 1])
@@ -87,8 +116,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, seri
         b = damping_scale(world.uncertainty, n_u) if uncertain else 1.0
         rough_R, rough_L = -n_R * rough, -n_L * rough
         a_R, a_L, d_R, d_L = wheel_acceleration(plant, w_R, w_L, u_R, u_L, b, uncertain, rough_R, rough_L, roll)
-        controller_update(params, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L)
-        # metrics (7), divergence, kept series
+        # metrics (7) on the truth, divergence, kept series
         t = k * world.dt
         accumulate(sums, r, acc, k, world.settle_steps, world.zone_settle_steps, 1 + zone, world.phase_base + phase, t, dev, e_x, e_y, e_th,
                    sat_R or sat_L,
@@ -101,14 +129,22 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, seri
         if slot >= 0:
             record(series[slot, k], t, x, y, theta, x_r, y_r, th_r, e_x, e_y, e_th, dev, dist, w_R, w_L,
                    wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, rough, b, zone)
-        # integrate plant and pose (4)
+        # integrate plant and pose (4); the encoders' true wheel angles
         c, sn = math.cos(theta), math.sin(theta)
+        w0_R, w0_L = w_R, w_L
         if world.rk4:
             x, y, theta, dist, w_R, w_L = rk4(plant, world.dt, x, y, theta, dist, w_R, w_L, c, sn, a_R, a_L,
                                               u_R, u_L, b, uncertain, rough_R, rough_L, roll)
         else:
             x, y, theta, dist, w_R, w_L = euler(plant, world.dt, x, y, theta, dist, w_R, w_L, c, sn, a_R, a_L)
+        if sen.encoder:
+            run["wheel_angle"][0] = sensor.wheel_angle(run["wheel_angle"][0], w0_R, w_R, world.dt)
+            run["wheel_angle"][1] = sensor.wheel_angle(run["wheel_angle"][1], w0_L, w_L, world.dt)
     run["x"], run["y"], run["theta"], run["distance"] = x, y, theta, dist
     run["w"][0], run["w"][1] = w_R, w_L
     run["w_d_prev"][0], run["w_d_prev"][1] = wdp_R, wdp_L
     run["noise"][0], run["noise"][1], run["noise"][2] = n_R, n_L, n_u
+    run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1] = uc_R, uc_L, us_R, us_L
+    run["saturated"][0], run["saturated"][1], run["s"][0], run["s"][1] = 1 if sat_R else 0, 1 if sat_L else 0, s_R, s_L
+    run["d_ndo"][0], run["d_ndo"][1], run["d_nn"][0], run["d_nn"][1] = ndo_R, ndo_L, nn_R, nn_L
+    run["w_d"][0], run["w_d"][1] = wd_R, wd_L

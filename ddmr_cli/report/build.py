@@ -12,6 +12,7 @@ from ddmr_cli.cli import io
 from ddmr_cli.engine.metrics import METRICS
 from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
+from ddmr_cli.report import realism
 from ddmr_cli.report import verdicts as V
 from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
 from ddmr_cli.report.figures import common_seed, make_figures
@@ -382,6 +383,7 @@ class Report:
         self.effort(stats)
         self.estimation(stats)
         self.nn_share()
+        realism.section(self)
         self.segments()
         self.figures()
         self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")

@@ -11,7 +11,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.control.outer_loop import Kanayama
+from ddmr_cli.model.actuator import Actuator
 from ddmr_cli.model.robot import Robot
+from ddmr_cli.model.sensor import Sensor
 from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
 from ddmr_cli.engine.simulation import Simulation
 from ddmr_cli.model.terrain import Terrain, TerrainZone
@@ -93,6 +95,9 @@ def build_simulation(cfg: DictConfig) -> Simulation:
         divergence_bound=float(sim_cfg.divergence_bound),
         settle_time=float(cfg.metrics.settle_time),
         zone_settle_time=float(cfg.metrics.zone_settle_time),
+        sensor=Sensor(**OmegaConf.to_container(cfg.sensor, resolve=True)),
+        actuator=Actuator(**OmegaConf.to_container(cfg.actuator, resolve=True)),
+        control_rate=None if cfg.control.rate is None else float(cfg.control.rate),
     )
 
 

@@ -289,6 +289,49 @@ class MetricsConfig:
 
 
 @dataclass
+class SensorConfig:
+    """What the controller measures (docs/model.md §10). Fields as :class:`ddmr_cli.model.sensor.Sensor`."""
+
+    kind: str = param(unit="", help="ideal: the truth; encoder: quantised wheel angles, speed by finite difference; "
+                      "noisy: truth + Gaussian noise", range="ideal | encoder | noisy", model=10,
+                      paper="conclusion (measurement noise named as a limit)")
+    counts_per_rev: int = param(unit="1", help="encoder counts per wheel revolution N (sensor.kind=encoder)",
+                                range="integer >= 1", model=10)
+    speed_filter: float = param(unit="s", help="time constant of the first-order low-pass on the encoder speed "
+                                "(0: none)", range=">= 0", model=10)
+    pose: str = param(unit="", help="pose of an encoder sensor: dead reckoning of the quantised wheels, or the true "
+                      "pose + noise (position_std, heading_std)", range="odometry | noisy", model=10)
+    speed_std: float = param(unit="rad/s", help="std of the Gaussian noise on each measured wheel speed",
+                             range=">= 0; 0 for sensor.kind=ideal", model=10)
+    position_std: float = param(unit="m", help="std of the Gaussian noise on the measured x and y",
+                                range=">= 0; 0 for sensor.kind=ideal", model=10)
+    heading_std: float = param(unit="rad", help="std of the Gaussian noise on the measured heading",
+                               range=">= 0; 0 for sensor.kind=ideal", model=10)
+
+
+@dataclass
+class ActuatorConfig:
+    """Between the controller and the motor (docs/model.md §10). Fields as :class:`ddmr_cli.model.actuator.Actuator`."""
+
+    delay: float = param(unit="s", help="transport delay from the controller's output to the motor driver",
+                         range=">= 0; a whole number of plant periods simulation.dt", model=10,
+                         paper="conclusion (delay named as a limit)")
+    lag: float = param(unit="s", help="time constant of the motor driver's first-order lag (0: none)",
+                       range=">= 0", model=10)
+    pwm_bits: int = param(unit="bit", help="PWM resolution of the voltage magnitude, levels U_max/(2^bits - 1) "
+                          "apart (0: a continuous voltage)", range="integer 0 .. 32", model=10)
+
+
+@dataclass
+class ControlConfig:
+    rate: Optional[float] = param(unit="Hz", help="rate of the controller, sensor and outer loop (zero-order hold "
+                                  "between control instants); null: every plant step (1/simulation.dt)",
+                                  range="null or > 0, <= 1/simulation.dt and dividing it; the controller's loops "
+                                  "stable at the control period", model=10,
+                                  paper="conclusion (real-time implementation named as a limit)")
+
+
+@dataclass
 class RunConfig:
     n_runs: int = param(unit="1", help="seeds per job; Table 4 statistics are across them",
                         range="integer >= 1", model=7, paper="Table 4 (50 runs)")
@@ -373,6 +416,10 @@ class DDMRConfig:
                                         model=3, factory=OuterLoopConfig)
     simulation: SimulationConfig = param(unit="", help="time stepping, initial state, divergence", model=4,
                                          factory=SimulationConfig)
+    sensor: SensorConfig = param(unit="", help="what the controller measures (conf/sensor)", model=10)
+    actuator: ActuatorConfig = param(unit="", help="PWM, delay and driver lag before the motor (conf/actuator)",
+                                     model=10)
+    control: ControlConfig = param(unit="", help="the controller's rate", model=10, factory=ControlConfig)
     metrics: MetricsConfig = param(unit="", help="how the run metrics are counted", model=7,
                                    factory=MetricsConfig)
     run: RunConfig = param(unit="", help="seeds, kept series and display settings of a job", factory=RunConfig)
@@ -391,6 +438,7 @@ def register_configs() -> None:
     cs.store(name="ddmr_schema", node=DDMRConfig)
     for name, node in [
         ("robot", RobotConfig), ("terrain", TerrainConfig), ("scenario", ScenarioConfig),
+        ("sensor", SensorConfig), ("actuator", ActuatorConfig),
         ("controller_pid", PIDConfig), ("controller_smc", SMCConfig), ("controller_open_loop", OpenLoopConfig),
         ("controller_adaptive_smc", AdaptiveSMCConfig), ("controller_sta", STAConfig), ("controller_adrc", ADRCConfig),
         ("trajectory_line", LineConfig), ("trajectory_circle", CircleConfig),

@@ -1,0 +1,235 @@
+"""The cost of a control step (docs/model.md §10): time of the controller's laws alone, their operation counts and
+an estimate for a Cortex-M4F.
+
+* **Time**: the controller's ``command`` and ``update`` laws, compiled, for one run over ``n`` control steps of
+  recorded-like inputs (:func:`control_steps`), timed warm (after a first call) ``repeats`` times; min and median
+  ns per step on this CPU. Nothing else of the loop (outer loop, plant, metrics) is inside.
+* **Operation counts**: by instrumenting the pure-Python fallback (:func:`count_operations`, run where numba is
+  off: ``NUMBA_DISABLE_JIT=1``): every float the laws see (inputs, parameters, state) is a counting float whose
+  arithmetic records additions, multiplications, divisions, comparisons and calls of ``exp``/``tanh``/... The
+  counts are of the laws as written (``(e - e_prev) * (1 / dt)`` is a division and a multiplication each step:
+  a port would precompute ``1 / dt``), averaged over the same inputs.
+* **Cortex-M4F estimate**: :data:`M4F_CYCLES` per operation in single precision (Arm Cortex-M4 TRM: VADD, VSUB,
+  VMUL, VNEG, VABS 1 cycle, VDIV and VSQRT 14, a compare 1 plus 1 to move the flags), an assumed 100 cycles
+  for a libm ``expf``/``tanhf``, times :data:`M4F_OVERHEAD` for the loads, stores and branches around each
+  operation; at :data:`M4F_CLOCK_HZ` the fraction of a 1 kHz control period.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import subprocess
+import sys
+import time
+from types import SimpleNamespace
+
+import numpy as np
+
+from ddmr_cli.compiled import law
+
+#: Cortex-M4F cycles per single-precision operation (docs/model.md §10; module docstring)
+M4F_CYCLES = {"add": 1, "mul": 1, "div": 14, "sqrt": 14, "cmp": 2, "other": 1, "transcendental": 100}
+#: factor for the loads, stores and branches around each floating-point operation (an assumption)
+M4F_OVERHEAD = 2.0
+M4F_CLOCK_HZ = 168e6
+#: the control period whose budget the estimate is a fraction of [s]
+BUDGET_PERIOD = 1e-3
+#: math functions the laws call, counted as transcendental (sqrt apart)
+TRANSCENDENTAL = ("exp", "tanh", "sin", "cos", "atan2", "log", "hypot")
+
+
+@law
+def control_steps(start, command, update, p, state, w, wd, wdd):
+    """Run a controller's laws for ``len(w)`` control steps on one state record: ``start``, then per step
+    ``command`` on ``(w[i], wd[i], wdd[i])`` (both wheels) and ``update`` with the voltage it returned. Returns the
+    sum of the voltages (so that nothing is optimised away)."""
+    st = state[0]
+    start(p, st, w[0, 0], w[0, 1])
+    total = 0.0
+    for i in range(w.shape[0]):
+        u_R, u_L, s_R, s_L, a, b, c, d = command(p, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
+        update(p, st, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], u_R, u_L, u_R, u_L, False, False)
+        total += u_R + u_L
+    return total
+
+
+def inputs(n: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Wheel speeds, references and reference derivatives like a run's: cruising at 33.3 rad/s (1 m/s), the
+    wheels a few rad/s off and oscillating [rad/s, rad/s, rad/s^2], shape ``(n, 2)`` each."""
+    t = np.arange(n) * dt
+    wd = np.stack([33.3 + 2.0 * np.sin(2.0 * t), 33.3 - 2.0 * np.sin(2.0 * t)], axis=1)
+    w = wd + np.stack([0.5 * np.sin(40.0 * t), -0.4 * np.cos(31.0 * t)], axis=1)
+    wdd = np.stack([4.0 * np.cos(2.0 * t), -4.0 * np.cos(2.0 * t)], axis=1)
+    return w, wd, wdd
+
+
+def time_per_step(controller, nominal, dt: float, n: int = 2000, repeats: int = 30) -> tuple[float, float]:
+    """(min, median) ns per control step of ``controller``'s laws, compiled, one run, warm."""
+    laws, params = controller.laws, controller.law_parameters(nominal, dt)
+    w, wd, wdd = inputs(n, dt)
+    state = controller.initial_state(1)
+    control_steps(laws.start, laws.command, laws.update, params, state, w, wd, wdd)  # compile / warm up
+    samples = []
+    for _ in range(repeats):
+        started = time.perf_counter_ns()
+        control_steps(laws.start, laws.command, laws.update, params, state, w, wd, wdd)
+        samples.append((time.perf_counter_ns() - started) / n)
+    return min(samples), statistics.median(samples)
+
+
+def _counting_float(counts: dict):
+    """A float type whose arithmetic adds to ``counts`` (a fresh class per count, no shared state)."""
+
+    def op(kind, fn):
+        def method(self, *args):
+            counts[kind] += 1
+            out = fn(float(self), *(float(a) for a in args))
+            return Counted(out) if isinstance(out, float) else out
+        return method
+
+    class Counted(float):
+        __add__ = op("add", float.__add__)
+        __radd__ = op("add", float.__radd__)
+        __sub__ = op("add", float.__sub__)
+        __rsub__ = op("add", float.__rsub__)
+        __mul__ = op("mul", float.__mul__)
+        __rmul__ = op("mul", float.__rmul__)
+        __truediv__ = op("div", float.__truediv__)
+        __rtruediv__ = op("div", float.__rtruediv__)
+        __pow__ = op("mul", float.__pow__)  # the laws square (x ** 2)
+        __neg__ = op("other", float.__neg__)
+        __abs__ = op("other", float.__abs__)
+        __lt__ = op("cmp", float.__lt__)
+        __le__ = op("cmp", float.__le__)
+        __gt__ = op("cmp", float.__gt__)
+        __ge__ = op("cmp", float.__ge__)
+
+    return Counted
+
+
+def _wrap(value, counted):
+    if isinstance(value, float) and not isinstance(value, bool):
+        return counted(value)
+    if isinstance(value, tuple) and hasattr(value, "_fields"):
+        return type(value)(*(_wrap(v, counted) for v in value))
+    if isinstance(value, tuple):
+        return tuple(_wrap(v, counted) for v in value)
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+        out = np.empty(value.shape, dtype=object)
+        out.flat[:] = [counted(float(v)) for v in value.flat]
+        return out
+    return value
+
+
+def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, float]:
+    """Operations per control step of ``controller``'s laws (module docstring), averaged over ``n`` steps.
+
+    Runs the laws as plain Python, so it needs numba off (``NUMBA_DISABLE_JIT=1`` or no numba):
+    :func:`operation_counts` runs it in such a subprocess."""
+    from ddmr_cli.compiled import jit_enabled
+
+    if jit_enabled():
+        raise RuntimeError("count_operations runs the pure-Python laws: set NUMBA_DISABLE_JIT=1")
+    counts = dict.fromkeys(M4F_CYCLES, 0) | {"sqrt": 0}
+    counted = _counting_float(counts)
+
+    def counting(name):
+        fn = getattr(math, name)
+
+        def call(*args):
+            counts["sqrt" if name == "sqrt" else "transcendental"] += 1
+            return counted(fn(*(float(a) for a in args)))
+        return call
+
+    fake_math = SimpleNamespace(**{name: getattr(math, name) for name in dir(math) if not name.startswith("_")})
+    for name in (*TRANSCENDENTAL, "sqrt"):
+        setattr(fake_math, name, counting(name))
+    modules = [m for m in list(sys.modules.values())
+               if getattr(m, "__name__", "").startswith("ddmr_cli.") and getattr(m, "math", None) is math]
+    laws = controller.laws
+    params = _wrap(controller.law_parameters(nominal, dt), counted)
+    record = controller.initial_state(1)[0]
+    st = {name: np.zeros(record[name].shape, dtype=object) for name in record.dtype.names}
+    for arr in st.values():
+        arr.flat[:] = [counted(0.0)] * arr.size
+    w, wd, wdd = (_wrap(a, counted) for a in inputs(n, dt))
+    try:
+        for m in modules:
+            m.math = fake_math
+        laws.start(params, st, w[0, 0], w[0, 1])
+        for key in counts:
+            counts[key] = 0
+        for i in range(n):
+            u_R, u_L, *_ = laws.command(params, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
+            laws.update(params, st, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], u_R, u_L, u_R, u_L, False, False)
+    finally:
+        for m in modules:
+            m.math = math
+    return {key: value / n for key, value in counts.items()}
+
+
+def operation_counts(names: list[str]) -> dict[str, dict[str, float]]:
+    """:func:`count_operations` for the packaged controllers ``names`` (conf/controller), in a subprocess with
+    ``NUMBA_DISABLE_JIT=1``; ``{name: counts}``."""
+    code = ("import json, sys; from ddmr_cli.engine.cost import packaged_counts; "
+            "print(json.dumps(packaged_counts(sys.argv[1:])))")
+    out = subprocess.run([sys.executable, "-c", code, *names], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+                         capture_output=True, text=True, check=True).stdout
+    import json
+
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def packaged_counts(names: list[str]) -> dict[str, dict[str, float]]:
+    """:func:`count_operations` of each packaged controller at the packaged ``simulation.dt``."""
+    from ddmr_cli.cli.config.presets import paper_controller, paper_robot, paper_config
+    from ddmr_cli.model.robot import NominalModel
+
+    nominal, dt = NominalModel.from_robot(paper_robot()), float(paper_config().simulation.dt)
+    return {name: count_operations(paper_controller(name), nominal, dt) for name in names}
+
+
+def m4f_cycles(counts: dict[str, float]) -> float:
+    """Estimated Cortex-M4F cycles per control step from operation counts (module docstring)."""
+    return M4F_OVERHEAD * sum(M4F_CYCLES[k] * counts.get(k, 0.0) for k in M4F_CYCLES)
+
+
+def flops(counts: dict[str, float]) -> float:
+    """Floating-point operations per step: additions, multiplications, divisions, square roots, comparisons and
+    sign/abs (transcendental calls apart)."""
+    return sum(counts.get(k, 0.0) for k in ("add", "mul", "div", "sqrt", "cmp", "other"))
+
+
+def cost_table(names: list[str], repeats: int = 30, n: int = 2000) -> list[dict]:
+    """One row per packaged controller: ns per step (min, median), operation counts, M4F cycles and the fraction
+    of a 1 kHz budget at 168 MHz."""
+    from ddmr_cli.cli.config.presets import paper_controller, paper_robot, paper_config
+    from ddmr_cli.model.robot import NominalModel
+
+    nominal, dt = NominalModel.from_robot(paper_robot()), float(paper_config().simulation.dt)
+    counts = operation_counts(names)
+    rows = []
+    for name in names:
+        ns_min, ns_median = time_per_step(paper_controller(name), nominal, dt, n=n, repeats=repeats)
+        c = counts[name]
+        cycles = m4f_cycles(c)
+        rows.append({"controller": name, "ns_min": ns_min, "ns_median": ns_median, "flops": flops(c),
+                     "transcendental": c["transcendental"], "divisions": c["div"], "m4f_cycles": cycles,
+                     "m4f_us": cycles / M4F_CLOCK_HZ * 1e6, "budget_1khz": cycles / (M4F_CLOCK_HZ * BUDGET_PERIOD),
+                     **{f"n_{k}": v for k, v in c.items()}})
+    return rows
+
+
+def assumptions() -> str:
+    """The cycle model, as one line of text."""
+    costs = ", ".join(f"{k} {v}" for k, v in M4F_CYCLES.items())
+    return (f"Cortex-M4F at {M4F_CLOCK_HZ / 1e6:g} MHz, single precision: cycles per operation {costs} "
+            f"(transcendental = libm expf/tanhf, assumed); x{M4F_OVERHEAD:g} for loads, stores and branches; "
+            f"budget = {BUDGET_PERIOD * 1e3:g} ms (1 kHz). Counts by instrumenting the pure-Python laws "
+            f"(NUMBA_DISABLE_JIT=1), averaged over 200 steps of cruise-like inputs.")
+
+
+__all__ = ["control_steps", "time_per_step", "count_operations", "operation_counts", "packaged_counts",
+           "m4f_cycles", "flops", "cost_table", "assumptions", "M4F_CYCLES", "M4F_OVERHEAD", "M4F_CLOCK_HZ"]

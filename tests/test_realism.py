@@ -1,0 +1,265 @@
+"""Sensors, actuator and control rate (docs/model.md §10): the laws against their closed forms, the engine's
+zero-order hold and delay, bit-identity with every effect off, determinism with every effect on, validation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import ddmr_cli.engine.simulation as simulation_module
+from ddmr_cli import ConfigError, paper_simulation, simulate
+from ddmr_cli.engine.batch import RUN_FIELDS
+from ddmr_cli.engine.noise import NoiseStreams, SensorNoise
+from ddmr_cli.model import actuator, sensor
+from ddmr_cli.model.actuator import Actuator
+from ddmr_cli.model.sensor import NOISE_CHANNELS, SENSOR_FIELDS, Sensor
+
+SHORT = ("terrain=paper", "simulation.duration=0.3")
+#: every effect on at once: encoder wheels with speed noise and a noisy pose fix, the realistic driver, 250 Hz
+EVERYTHING = ("sensor=encoder", "sensor.pose=noisy", "sensor.speed_std=0.05", "sensor.speed_filter=0.004",
+              "actuator=realistic", "control.rate=250")
+#: every effect off, spelt out (the non-ideal code paths with zero noise, zero delay, control at the plant rate)
+ALL_OFF = ("sensor=noisy", "sensor.speed_std=0", "sensor.position_std=0", "sensor.heading_std=0",
+           "actuator.delay=0", "actuator.lag=0", "actuator.pwm_bits=0", "control.rate=1000")
+
+
+def make_sensor(**values) -> Sensor:
+    base = dict(kind="encoder", counts_per_rev=1024, speed_filter=0.0, pose="odometry", speed_std=0.0,
+                position_std=0.0, heading_std=0.0)
+    return Sensor(**{**base, **values})
+
+
+def sensor_run(x=0.0, y=0.0, theta=0.0):
+    run = np.zeros(1, dtype=np.dtype(RUN_FIELDS + SENSOR_FIELDS))
+    run["x"], run["y"], run["theta"] = x, y, theta
+    return run
+
+
+def run_sim(*overrides, seeds=(0, 1, 2), keep=(1,), threads=1, controller="smc_ndo_nno"):
+    sim = paper_simulation(f"controller={controller}", *SHORT, *overrides)
+    return simulate(sim, seeds=list(seeds), keep_series=list(keep), threads=threads)
+
+
+def assert_same(a, ia, b, ib, series_seed=None):
+    for name in a.metrics:
+        assert np.array_equal(a.metrics[name][ia], b.metrics[name][ib], equal_nan=True), name
+    if series_seed is not None:
+        for ch in a.series[series_seed]:
+            assert np.array_equal(a.series[series_seed][ch], b.series[series_seed][ch], equal_nan=True), ch
+
+
+# --- the laws ----------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("counts", [1, 7, 256, 1024, 4096])
+def test_quantisation_error_stays_within_half_a_count(counts):
+    q = 2 * math.pi / counts
+    angles = np.concatenate([np.random.default_rng(counts).uniform(-500.0, 500.0, 2000),
+                             q * (np.arange(-50, 50) + 0.5), q * np.arange(-50, 50)])
+    read = np.array([sensor.quantise(a, q) for a in angles])
+    assert np.all(np.abs(read - angles) <= 0.5 * q * (1 + 1e-9))
+    n = read / q
+    assert np.allclose(n, np.round(n), rtol=0, atol=1e-6)  # whole counts
+    assert np.abs(read - angles).max() > 0.45 * q  # and really quantised
+
+
+@pytest.mark.parametrize("w", [33.3, -12.7, 0.4])
+@pytest.mark.parametrize("period_steps", [1, 5])
+def test_finite_difference_of_a_constant_speed_wheel_is_within_one_count_per_period(w, period_steps):
+    dt, counts = 1e-3, 1024
+    period, q = period_steps * dt, 2 * math.pi / counts
+    p = make_sensor(counts_per_rev=counts).law_parameters(period)
+    run = sensor_run()
+    sensor.start(p, run[0], w, w)
+    xi = np.zeros(len(NOISE_CHANNELS))
+    errors = []
+    for k in range(400):
+        if k % period_steps == 0:
+            m_R, m_L, *_ = sensor.measure(p, run[0], 0.0, 0.0, 0.0, w, w, xi, 0.03, 0.25)
+            errors.append(m_R - w)
+        for i in range(2):
+            run[0]["wheel_angle"][i] = sensor.wheel_angle(run[0]["wheel_angle"][i], w, w, dt)
+    errors = np.abs(errors)
+    assert errors.max() <= q / period * (1 + 1e-9)
+    assert errors.max() > 0.2 * q / period  # the estimate really is quantised
+
+
+def test_odometry_of_a_wheel_turn_gives_the_arc():
+    R, L, w = 0.03, 0.25, 20.0  # right wheel only: a circle of radius L about the left wheel
+    x, y, th = 0.0, 0.0, 0.0
+    d = w * 1e-3
+    for _ in range(1000):
+        x, y, th = sensor.odometry(x, y, th, d, 0.0, R, L)
+    phi = R * w * 1.0 / (2 * L)  # heading after 1 s
+    assert th == pytest.approx(phi, rel=1e-12)
+    assert x == pytest.approx(L * math.sin(phi), rel=1e-6) and y == pytest.approx(L * (1 - math.cos(phi)), rel=1e-6)
+
+
+def test_low_pass_and_driver_lag_follow_the_exponential():
+    tau, dt, u_in, u0 = 0.004, 1e-3, 5.0, -2.0
+    a = math.exp(-dt / tau)
+    u = u0
+    for k in range(1, 30):
+        u = actuator.driver_lag(u, u_in, a)
+        assert u == pytest.approx(u_in + (u0 - u_in) * math.exp(-k * dt / tau), rel=1e-12)
+        assert sensor.low_pass(u0, u_in, a) == pytest.approx(actuator.driver_lag(u0, u_in, a), rel=1e-15)
+
+
+@pytest.mark.parametrize("bits", [1, 8, 10])
+def test_pwm_levels(bits):
+    p = Actuator(delay=0.0, lag=0.0, pwm_bits=bits).law_parameters(1e-3, 24.0)
+    du = 24.0 / (2**bits - 1)
+    assert p.pwm_step == pytest.approx(du)
+    for u in np.linspace(-24.0, 24.0, 997):
+        level = actuator.pwm(u, p.pwm_step)
+        assert abs(level - u) <= 0.5 * du * (1 + 1e-9) and abs(level) <= 24.0 * (1 + 1e-12)
+        assert level / du == pytest.approx(round(level / du), abs=1e-9)
+
+
+def test_sensor_noise_stream_is_its_own():
+    a = SensorNoise([3, 4], len(NOISE_CHANNELS)).next_chunk(10)
+    b = SensorNoise([4], len(NOISE_CHANNELS)).next_chunk(10)
+    assert np.array_equal(a[1], b[0])
+    disturbance = NoiseStreams([3]).next_chunk(10)
+    assert not np.allclose(a[0, :, :3], disturbance[0], atol=1e-3)
+
+
+# --- the engine ---------------------------------------------------------------------------------------------------
+
+def test_zero_order_hold_keeps_u_constant_between_control_instants():
+    m = 5  # 200 Hz on the 1 kHz plant
+    s = run_sim("control.rate=200", controller="smc_ndo_nno").series[1]
+    for ch in ("u_command_right", "u_command_left", "u_right", "s_right", "d_hat_nn_left", "w_d_right"):
+        held = s[ch].reshape(-1, m)
+        assert np.array_equal(held, np.repeat(held[:, :1], m, axis=1)), ch  # bit-copies within a period
+        assert np.all(np.abs(np.diff(held[:, 0])) > 0), ch  # and a new value at every control instant
+
+
+@pytest.mark.parametrize("rate,n", [(None, 3), (250, 2)])
+def test_an_n_period_delay_shifts_the_applied_u_by_n_periods(rate, n):
+    m = 1 if rate is None else 1000 // rate
+    shift = n * m
+    extra = () if rate is None else (f"control.rate={rate}",)
+    delayed = run_sim(f"actuator.delay={shift * 1e-3}", *extra, controller="smc_ndo").series[1]
+    u, uc = delayed["u_right"], np.clip(delayed["u_command_right"], -24.0, 24.0)
+    assert np.array_equal(u[shift:], uc[:-shift])  # copies: exactly the command n periods earlier
+    assert np.all(u[:shift] == uc[0])  # before the first command arrives, the driver holds it
+    assert not np.array_equal(u[shift:], uc[shift:])  # (the command really moves)
+
+
+def test_every_effect_off_is_bit_identical_to_the_ideal_sensor_and_actuator():
+    ideal = run_sim("sensor=ideal", "actuator=ideal")
+    off = run_sim(*ALL_OFF)
+    assert_same(ideal, slice(None), off, slice(None), series_seed=1)
+    assert not np.array_equal(run_sim("sensor=encoder").metrics["deviation_mae"], ideal.metrics["deviation_mae"])
+
+
+def test_sensor_noise_leaves_the_disturbance_streams_alone():
+    # open loop: nothing measured acts on the plant, so the true run is the same with or without sensor noise
+    ideal = run_sim(controller="open_loop").series[1]
+    noisy = run_sim("sensor=noisy", "sensor.speed_std=1.0", controller="open_loop").series[1]
+    for ch in ("d_true_right", "d_true_left", "w_right", "deviation", "damping_scale"):
+        assert np.array_equal(noisy[ch], ideal[ch]), ch
+    assert np.ptp(ideal["d_true_right"]) > 0.1  # the roughness noise is really there (flat zone: 0.1 rad/s^2)
+
+
+@pytest.mark.parametrize("effects", [EVERYTHING, pytest.param(("sensor=noisy", "actuator.delay=0.003", "control.rate=500"),
+                                                                marks=pytest.mark.slow)])
+def test_determinism_with_every_effect_on(effects, monkeypatch):
+    batch = run_sim(*effects, seeds=(0, 1, 2, 3), keep=(2,), threads=1)
+    alone = run_sim(*effects, seeds=(2,), keep=(2,))
+    assert_same(alone, 0, batch, 2, series_seed=2)
+    threaded = run_sim(*effects, seeds=(3, 2, 1, 0), keep=(2,), threads=2)
+    assert_same(threaded, 1, batch, 2, series_seed=2)
+    monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 1)  # the smallest chunks the engine allows
+    chunked = run_sim(*effects, seeds=(0, 1, 2, 3), keep=(2,))
+    assert_same(chunked, slice(None), batch, slice(None), series_seed=2)
+    assert len(np.unique(batch.metric("deviation_mae"))) == 4
+
+
+# --- validation ---------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("overrides,key", [
+    (("sensor=noisy", "sensor.speed_std=-0.1"), "sensor.speed_std"),
+    (("sensor=noisy", "sensor.position_std=-1"), "sensor.position_std"),
+    (("sensor=encoder", "sensor.counts_per_rev=0"), "sensor.counts_per_rev"),
+    (("sensor.speed_std=0.1",), "sensor.speed_std"),  # noise on the ideal sensor
+    (("sensor=encoder", "sensor.speed_filter=-0.01"), "sensor.speed_filter"),
+    (("actuator.delay=0.0015",), "actuator.delay"),  # 1.5 plant periods
+    (("actuator.delay=-0.001",), "actuator.delay"),
+    (("actuator.pwm_bits=-1",), "actuator.pwm_bits"),
+    (("control.rate=2000",), "control.rate"),  # above the 1 kHz plant
+    (("control.rate=300",), "control.rate"),  # does not divide it
+    (("control.rate=0",), "control.rate"),
+    (("controller=pid", "control.rate=200"), "control.rate"),  # the sampled PD loop is unstable at 5 ms
+    (("controller=smc", "control.rate=50"), "control.rate"),  # lambda + K/Phi = 145 1/s at 20 ms
+])
+def test_bad_realism_settings_are_refused_naming_the_key(overrides, key):
+    with pytest.raises(ConfigError) as err:
+        paper_simulation(*overrides).validate()
+    assert err.value.key == key
+
+
+def test_the_controllers_run_at_the_control_period():
+    sim = paper_simulation("controller=pid", "control.rate=250")
+    sim.validate()
+    assert sim.control_steps == 4 and sim.control_dt == pytest.approx(0.004)
+    assert paper_simulation("controller=smc_ndo_nno", "control.rate=100").control_steps == 10
+
+
+# --- the cost of a control step ---------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def counts():
+    from ddmr_cli.engine.cost import operation_counts
+
+    return operation_counts(["pid", "smc_ndo_nno"])
+
+
+def test_operation_counts_match_the_laws_read_by_hand(counts):
+    # PID per step (pid.py): e = w_d - w (2 add); e' = (e - e_prev) * (1/dt) (2 add, 2 div, 2 mul, not at step 0);
+    # u = kp e + ki I + kd e' (6 mul, 4 add); update: dt * (w_d - w) added to I (2 mul, 4 add). 200 steps.
+    pid = counts["pid"]
+    assert pid["add"] == pytest.approx(12 - 2 / 200) and pid["mul"] == pytest.approx(10 - 2 / 200)
+    assert pid["div"] == pytest.approx(2 - 2 / 200) and pid["transcendental"] == 0
+    nno = counts["smc_ndo_nno"]
+    assert nno["transcendental"] == pytest.approx(10)  # one exp per neuron (conf: n_neurons = 10), both wheels share it
+    assert nno["add"] > 4 * 10 and nno["mul"] > 6 * 10  # basis, estimate and update: a few per neuron and wheel
+
+
+def test_m4f_estimate_is_the_stated_cycle_model():
+    from ddmr_cli.engine.cost import M4F_CYCLES, M4F_OVERHEAD, m4f_cycles
+
+    ops = {"add": 10, "mul": 5, "div": 2, "cmp": 3, "transcendental": 1}
+    expected = M4F_OVERHEAD * (10 * M4F_CYCLES["add"] + 5 * M4F_CYCLES["mul"] + 2 * M4F_CYCLES["div"]
+                               + 3 * M4F_CYCLES["cmp"] + M4F_CYCLES["transcendental"])
+    assert m4f_cycles(ops) == pytest.approx(expected)
+
+
+def test_the_compiled_step_timing_runs_the_laws():
+    from ddmr_cli import paper_controller, paper_robot
+    from ddmr_cli.engine.cost import control_steps, inputs, time_per_step
+    from ddmr_cli.model.robot import NominalModel
+
+    pid = paper_controller("pid")
+    nominal = NominalModel.from_robot(paper_robot())
+    w, wd, wdd = inputs(50, 1e-3)
+    state = pid.initial_state(1)
+    total = control_steps(pid.laws.start, pid.laws.command, pid.laws.update, pid.law_parameters(nominal, 1e-3),
+                          state, w, wd, wdd)
+    e = wd - w  # the proportional part dominates: u ~ kp e per wheel
+    assert abs(total) > 0 and np.sign(total) == np.sign(e.sum())
+    fastest, median = time_per_step(pid, nominal, 1e-3, n=200, repeats=3)
+    assert 0 < fastest <= median < 1e5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("bad", ["control.rate=300", "actuator.delay=0.0025", "sensor=encoder sensor.counts_per_rev=0"])
+def test_the_cli_refuses_bad_realism_settings_in_one_line(tmp_path, bad):
+    from conftest import run_ddmr
+
+    proc = run_ddmr(["run", *bad.split(), "run.n_runs=1", "hydra.run.dir=out"], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and proc.stderr.startswith("ddmr: error: ")
+    assert not (tmp_path / "out").exists()
