@@ -355,6 +355,8 @@ def _add_steady_state(sweep: Path, factor: dict[str, float]) -> None:
     """Constructed ``<metric>_ss`` columns: the whole-run value times a per-controller factor."""
     import pandas as pd
 
+    from ddmr_cli.cli.jobdir import digest
+
     for job in sweep.iterdir():
         if not (job / "metrics.csv").is_file():
             continue
@@ -363,6 +365,9 @@ def _add_steady_state(sweep: Path, factor: dict[str, float]) -> None:
         for m in SS_METRICS:
             frame[m + "_ss"] = frame[m] * factor.get(controller, 1.0)
         frame.to_csv(job / "metrics.csv", index=False)
+        summary = json.loads((job / "summary.json").read_text())  # as an engine writing these columns records them
+        summary["digests"]["metrics.csv"] = digest(job / "metrics.csv")
+        (job / "summary.json").write_text(json.dumps(summary))
 
 
 def test_steady_state_columns_are_used(mini_sweep, tmp_path):

@@ -82,7 +82,7 @@ def run_job(cfg: DictConfig) -> dict:
         summary = execute(cfg, out, overrides, digest, sim)
     except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
         error = f"{type(exc).__name__}: {exc}"
-        fault = jobdir.fault(exc) if isinstance(exc, OSError) else None
+        fault = jobdir.fault(exc, out) if isinstance(exc, OSError) else None
         log.error("job failed: %s", error)
         failed = {**base, "status": "failed", "error": error, "traceback": traceback.format_exc(),
                   "wall_time": time.perf_counter() - started}

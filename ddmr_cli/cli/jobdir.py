@@ -30,6 +30,8 @@ from ddmr_cli.cli import io
 LOCK = ".ddmr.lock"
 #: job outputs (besides summary.json) a job writes; removed before a job writes new ones
 OUTPUTS = (io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV, io.SERIES, io.PLOTS_DIR)
+#: the files a job's results cannot do without (tables and config); series and plots serve figures only
+REQUIRED = (io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV)
 #: longest job dir name (bytes); file systems allow 255
 MAX_NAME = 120
 _SAFE = re.compile(r"[A-Za-z0-9._,=+\-]+")
@@ -49,11 +51,15 @@ class LockedError(FaultError):
     """The output dir is held by another ``ddmr run``."""
 
 
-def fault(exc: OSError) -> FaultError:
-    """An OSError as a :class:`FaultError` naming its path and reason."""
+def fault(exc: OSError, out: Path | None = None) -> FaultError:
+    """An OSError as a :class:`FaultError` naming its path (a file of ``out``'s staging dir by its place in
+    ``out``) and reason."""
     if isinstance(exc, FaultError):
         return exc
-    path = exc.filename if exc.filename is not None else "?"
+    path = str(exc.filename) if exc.filename is not None else "?"
+    if out is not None:
+        stage = str(Stage(out).path)
+        path = str(Path(out) / os.path.relpath(path, stage)) if path.startswith(stage + os.sep) else path
     if exc.errno in (errno.EEXIST, errno.ENOTDIR):
         return FaultError(path, "a file is in the way of an output dir (it exists and is not a directory)")
     return FaultError(path, exc.strerror or str(exc))
@@ -93,14 +99,19 @@ def _files(root: Path) -> list[str]:
     return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
 
 
-def verify(job_dir: Path, summary: dict) -> str | None:
-    """None when every file ``summary`` records is in ``job_dir`` with its size and hash; else the reason."""
+def verify(job_dir: Path, summary: dict, strict: bool = True) -> str | None:
+    """None when every file ``summary`` records is in ``job_dir`` with its size and hash; else the reason.
+
+    ``strict=False`` (reading results, not resuming) lets the files only figures need (``series.npz``,
+    ``plots/``) be missing, as when a user drops them to save space; a file that is there must still match."""
     digests = summary.get("digests")
     if not isinstance(digests, dict) or not digests:
         return "its summary records no file digests"
     for name, want in digests.items():
         path = Path(job_dir) / name
         if not path.is_file():
+            if not strict and name not in REQUIRED:
+                continue
             return f"{name} is missing"
         if path.stat().st_size != want.get("size"):
             return f"{name} has {path.stat().st_size} bytes, {want.get('size')} recorded"

@@ -13,6 +13,7 @@ import logging
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Sequence
 
 EXIT_USAGE = 2
@@ -232,7 +233,7 @@ def _refuse_shared_dirs(plan: list[dict], subdir: list[str]) -> None:
 
 
 #: flags naming config dirs: the primary config's (``--config-path``) and an extra one (``--config-dir``)
-_DIR_FLAGS = {"--config-path": "path", "-cp": "path", "--config-dir": "dir", "-cd": "dir"}
+_DIR_FLAGS = MappingProxyType({"--config-path": "path", "-cp": "path", "--config-dir": "dir", "-cd": "dir"})
 
 
 def _config_dirs(argv: list[str]) -> tuple[list[str], str | None, str | None]:
@@ -274,7 +275,7 @@ def finish(launch: Launch) -> int:
         status = 0 if state.ok and (launch.out_dir / sweep.JOBS_CSV).is_file() else EXIT_FAILED
         faults = [s["fault"] for _, s in state.failed if isinstance(s.get("fault"), dict)]
         if faults:
-            more = f" (and {len(faults) - 1} more jobs)" if len(faults) > 1 else ""
+            more = f" ({len(faults)} jobs failed on file-system faults)" if len(faults) > 1 else ""
             print(f"ddmr: error: {faults[0]['path']}: {faults[0]['reason']}{more}", file=sys.stderr)
     else:
         summary = io.read_summary(launch.out_dir)

@@ -171,10 +171,10 @@ def read_state(sweep_dir: Path, plan: list[dict] | None = None, every_dir: bool 
 
 def _changed(job_dir: Path, summary: dict) -> str | None:
     """Why a complete job's files are not the ones its summary records (None: they are, or the summary
-    predates digests)."""
+    predates digests). Dropped series and plots are allowed (:func:`ddmr_cli.cli.jobdir.verify`)."""
     from ddmr_cli.cli.jobdir import verify
 
-    return verify(job_dir, summary) if "digests" in summary else None
+    return verify(job_dir, summary, strict=False) if "digests" in summary else None
 
 
 def load_sweep(sweep_dir: Path) -> SweepState:

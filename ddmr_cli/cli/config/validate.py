@@ -19,6 +19,7 @@ import dataclasses
 import difflib
 import math
 import re
+from types import MappingProxyType
 from typing import Any, Iterable, Iterator
 
 import numpy as np
@@ -33,12 +34,12 @@ from ddmr_cli.errors import ConfigError
 KEEP_FORMS = "a list of seeds, first:N (the job's first N seeds), all or none"
 #: config nodes that instantiate a class -> the base class (module, name) their _target_ must be or extend;
 #: a trajectory is any class of ddmr_cli.model.trajectory (a protocol, no base class)
-TARGET_BASES = {
+TARGET_BASES = MappingProxyType({
     "controller": ("ddmr_cli.control.base", "WheelController"),
     "controller.ndo": ("ddmr_cli.control.ndo", "NonlinearDisturbanceObserver"),
     "controller.nn": ("ddmr_cli.control.rbf", "RBFNetworkObserver"),
     "trajectory": ("ddmr_cli.model.trajectory", None),
-}
+})
 
 
 class DerivedError(ConfigError):
@@ -102,14 +103,14 @@ def _cpus(key: str, value: Any) -> None:
 
 
 #: the rule of every documented cluster key (conf/launcher presets; schema.CLUSTER_KEYS documents them)
-CLUSTER_RULES = {
+CLUSTER_RULES = MappingProxyType({
     "cpus": _cpus,
     "partition": _text,
     "time_min": lambda key, value: integer(key, value, 1),
     "mem_gb": positive,
     "jobs": lambda key, value: integer(key, value, 1),
     "address": _text,
-}
+})
 
 
 def validate_cluster(cluster: DictConfig | None) -> None:
