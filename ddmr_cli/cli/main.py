@@ -211,8 +211,6 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise UsageError(_missing_plugin(exc, overrides) or _explain(exc, overrides)) from None
     pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}"]
-    if multirun:
-        print(f"ddmr: sweep of {len(plan)} jobs validated -> {out_dir}", file=sys.stderr)
     return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin)
 
 
@@ -329,6 +327,8 @@ def run_locked(launch: Launch) -> int:
 
     try:
         with jobdir.DirLock(launch.out_dir):
+            if launch.multirun:
+                print(f"ddmr: sweep of {len(launch.plan)} jobs validated -> {launch.out_dir}", file=sys.stderr)
             os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
             code = _hydra(list(launch.argv))
             return code or finish(launch)
