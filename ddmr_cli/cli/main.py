@@ -325,11 +325,13 @@ def run_locked(launch: Launch) -> int:
 
     from ddmr_cli.cli import jobdir
 
+    reaper = None
     try:
         with jobdir.DirLock(launch.out_dir):
             if launch.multirun:
                 print(f"ddmr: sweep of {len(launch.plan)} jobs validated -> {launch.out_dir}", file=sys.stderr)
-            os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
+                os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
+                reaper = _start_reaper()
             code = _hydra(list(launch.argv))
             return code or finish(launch)
     except jobdir.FaultError as exc:
@@ -339,6 +341,24 @@ def run_locked(launch: Launch) -> int:
         _stop_workers()
         print(INTERRUPTED_MESSAGE, file=sys.stderr)
         return INTERRUPTED
+    finally:
+        if reaper is not None:
+            reaper.stdin.close()  # the reaper ends what is left of the workers (nothing, after a normal end)
+
+
+def _start_reaper():
+    """Start :mod:`ddmr_cli.cli.reaper` (a script, in its own session) to end this run's workers when this
+    process ends or is killed; None when it cannot be started."""
+    import os
+    import socket
+    import subprocess
+
+    try:
+        return subprocess.Popen([sys.executable, str(Path(__file__).with_name("reaper.py")), str(os.getpid()),
+                                 socket.gethostname()], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)
+    except OSError:
+        return None
 
 
 def _hydra(argv: list[str], completing: bool = False) -> int:
