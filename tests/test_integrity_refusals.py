@@ -19,7 +19,7 @@ SLOW = {"huge network"}
 
 @pytest.mark.parametrize("case", [pytest.param(c, id=c.name, marks=pytest.mark.slow if c.name in SLOW else ())
                                   for c in CASES])
-def test_refused_with_one_line_and_nothing_left(case, tmp_path, monkeypatch, capsys):
+def test_refused_with_one_line_and_nothing_left(case, tmp_path, monkeypatch, capfd):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
@@ -28,7 +28,7 @@ def test_refused_with_one_line_and_nothing_left(case, tmp_path, monkeypatch, cap
         if case.setup == "lock":
             stack.enter_context(jobdir.DirLock(work / "locked"))
         code = main.main(["run", *args])
-    err = capsys.readouterr().err
+    err = capfd.readouterr().err  # file-descriptor level: log handlers' lines count too
     lines = err.strip().splitlines()
     assert code == case.exit, err
     assert len(lines) == 1 and lines[0].startswith("ddmr: error: ") and case.message in lines[0], lines

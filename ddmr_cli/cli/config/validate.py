@@ -140,16 +140,18 @@ def check_target_classes(cfg: DictConfig) -> None:
     controller node a :class:`~ddmr_cli.control.base.WheelController`, ...), not any ``ddmr_cli`` class."""
     import importlib
 
-    from hydra.utils import get_class
+    from hydra._internal.utils import _locate  # hydra.utils.get_class also logs an error line on failure
 
     for path, target in ((p, t) for p, t in _targets(cfg, "") if p != "hydra" and not p.startswith("hydra.")):
         if path not in TARGET_BASES:
             raise ConfigError(f"{path}._target_", target, f"no class is instantiated from {path}")
         try:
-            cls = get_class(str(target))
+            cls = _locate(str(target))
         except Exception as exc:  # noqa: BLE001  (Hydra wraps import errors of any kind)
             raise ConfigError(f"{path}._target_", target, f"cannot be imported ({type(exc).__name__})") from None
         module, base = TARGET_BASES[path]
+        if not isinstance(cls, type):
+            raise ConfigError(f"{path}._target_", target, "must name a class")
         if base is None:
             ok = cls.__module__ == module and callable(getattr(cls, "reference", None))
             kind = f"a trajectory class of {module}"
