@@ -6,6 +6,7 @@ file-system fault or a held lock, before Hydra starts, leaving nothing behind. T
 from __future__ import annotations
 
 import contextlib
+import logging
 
 import pytest
 
@@ -19,7 +20,7 @@ SLOW = {"huge network"}
 
 @pytest.mark.parametrize("case", [pytest.param(c, id=c.name, marks=pytest.mark.slow if c.name in SLOW else ())
                                   for c in CASES])
-def test_refused_with_one_line_and_nothing_left(case, tmp_path, monkeypatch, capfd):
+def test_refused_with_one_line_and_nothing_left(case, tmp_path, monkeypatch, capfd, caplog):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
@@ -33,6 +34,7 @@ def test_refused_with_one_line_and_nothing_left(case, tmp_path, monkeypatch, cap
     assert code == case.exit, err
     assert len(lines) == 1 and lines[0].startswith("ddmr: error: ") and case.message in lines[0], lines
     assert "Traceback" not in err
+    assert [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING] == []  # no extra log lines
     assert left_behind(work, case) == []
 
 
