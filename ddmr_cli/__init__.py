@@ -2,11 +2,14 @@
 
 Python API (model code, no Hydra needed)::
 
-    from ddmr_cli import Simulation, simulate, SMC, NonlinearDisturbanceObserver, paper_terrain, paper_scenario
-    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0)),
-                     terrain=paper_terrain(), scenario=paper_scenario(1))
+    from ddmr_cli import paper_simulation, paper_controller, simulate
+    sim = paper_simulation("controller=smc_ndo", "scenario=paper_2")   # every value from the packaged config
+    sim = paper_simulation(controller=paper_controller("smc", "controller.switching_gain=20"), duration=5.0)
     result = simulate(sim, seeds=range(50))
     result.to_pandas()
+
+The model classes (``Simulation``, ``Robot``, ``SMC``, ...) take every value as a required argument; the
+defaults live once, in the packaged YAML (``conf/``), which the ``paper_*`` functions read.
 
 Config-driven (the same configs as the CLI)::
 
@@ -29,7 +32,10 @@ _EXPORTS = {
     "PID": "control", "SMC": "control", "NonlinearDisturbanceObserver": "control",
     "OpenLoop": "control", "RBFNetworkObserver": "control", "WheelController": "control",
     "ConfigError": "errors", "DDMRError": "errors",
-    "Kanayama": "control.outer_loop", "paper_scenario": "model.presets", "paper_terrain": "model.presets",
+    "Kanayama": "control.outer_loop", 
+    "paper_config": "cli.config.presets", "paper_simulation": "cli.config.presets",
+    "paper_controller": "cli.config.presets", "paper_trajectory": "cli.config.presets",
+    "paper_robot": "cli.config.presets", "paper_scenario": "cli.config.presets", "paper_terrain": "cli.config.presets",
     "SimulationResult": "engine.results", "NominalModel": "model.robot", "Robot": "model.robot",
     "DampingUncertainty": "model.scenario", "Phase": "model.scenario", "Scenario": "model.scenario",
     "Simulation": "engine.simulation", "simulate": "engine.simulation", "Terrain": "model.terrain", "TerrainZone": "model.terrain",
@@ -56,7 +62,8 @@ if TYPE_CHECKING:  # pragma: no cover
                               WheelController)
     from ddmr_cli.errors import ConfigError, DDMRError
     from ddmr_cli.control.outer_loop import Kanayama
-    from ddmr_cli.model.presets import paper_scenario, paper_terrain
+    from ddmr_cli.cli.config.presets import (paper_config, paper_controller, paper_robot, paper_scenario,
+                                             paper_simulation, paper_terrain, paper_trajectory)
     from ddmr_cli.engine.results import SimulationResult
     from ddmr_cli.model.robot import NominalModel, Robot
     from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
@@ -94,5 +101,6 @@ __all__ = [
     "Simulation", "simulate", "SimulationResult", "Robot", "NominalModel", "Terrain", "TerrainZone", "Scenario",
     "Phase", "DampingUncertainty", "StraightLine", "Circle", "FigureEight", "Kanayama", "WheelController", "PID",
     "SMC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver", "paper_terrain", "paper_scenario",
+    "paper_config", "paper_simulation", "paper_controller", "paper_trajectory", "paper_robot",
     "compose_config", "run_config", "load_sweep", "ConfigError", "DDMRError",
 ]

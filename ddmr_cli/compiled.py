@@ -9,10 +9,13 @@ Laws are not cached on disk one by one: numba's cache of a function does not not
 calls in another file, so a cached caller could keep running an old law. Only the copies of the step loop are
 cached (:func:`cached_law`), under a name that holds a hash of every law's source
 (:mod:`ddmr_cli.engine.kernels`).
+
+Importing this module fixes one numba defect that the disk cache exposes (:func:`_content_mangled_records`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 
 try:
@@ -23,6 +26,29 @@ except ImportError:  # pragma: no cover - exercised by tests/test_fallback.py in
 
 #: True when numba is installed (laws run compiled unless NUMBA_DISABLE_JIT=1)
 AVAILABLE = numba is not None
+
+
+def _content_mangled_records() -> None:
+    """Name compiled functions that take structured records after the record's layout, not after a counter.
+
+    numba (0.68) mangles a record type into symbol names by ``Record._code``, a counter of the types a process has
+    made. Two processes can give two different layouts the same number: SMC-NDO's state record (1 neuron) and
+    SMC-NDO-NNO's (10 neurons), each compiled first in its own process, both became record number k, so their
+    cached step loops defined ``smc.command`` under one symbol name, and a process that loaded both from the disk
+    cache linked SMC-NDO-NNO's loop to SMC-NDO's laws (it ran SMC-NDO's numbers, or crashed in LLVM). Mangling
+    by a hash of the layout (``Record.name`` spells every field, type, shape and offset) makes equal layouts share
+    a name in every process and different ones never. Tested by tests/test_engine.py
+    (test_a_warm_cache_keeps_controllers_of_one_module_apart)."""
+    from numba.core.types.npytypes import Record
+
+    def mangling_args(self):
+        return type(self).__name__, (hashlib.sha256(self.name.encode()).hexdigest()[:16],)
+
+    Record.mangling_args = property(mangling_args)
+
+
+if AVAILABLE:
+    _content_mangled_records()
 
 
 def law(fn):

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hydra import compose, initialize_config_module
-from omegaconf import OmegaConf
+from omegaconf import MISSING, OmegaConf
 
+from paper import make_smc, make_robot, make_simulation
 from ddmr_cli import PID, SMC, ConfigError, Robot, paper_scenario, paper_terrain
 from ddmr_cli.cli.config import build_simulation, config_hash, group_options, validate_config
+from ddmr_cli.cli.config import schema
 from ddmr_cli.cli.config.build import build_scenario, build_terrain
 
 CONTROLLERS = ["pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"]
@@ -41,12 +45,60 @@ def test_default_config_is_the_paper_scenario_1_with_smc_ndo_nno():
     assert list(cfg.simulation.initial_pose) == [0.0, 0.05, 0.05]
 
 
-def test_yaml_values_match_model_md_and_python_presets():
+def test_yaml_values_match_model_md():
     cfg = _compose(["scenario=paper_2"])
-    assert Robot(**OmegaConf.to_container(cfg.robot)) == Robot()
-    assert build_terrain(cfg.terrain) == paper_terrain()
-    assert build_scenario(cfg.scenario) == paper_scenario(2)
+    assert Robot(**OmegaConf.to_container(cfg.robot)) == Robot(15.0, 0.03, 0.5, 0.27, 0.0075, 0.3, 0.3, 0.7, 0.01, 24.0)
+    zones = [(z.name, z.start, z.roughness, z.mu) for z in build_terrain(cfg.terrain).zones]
+    assert zones == [("flat", 0.0, 0.1, 0.02), ("very_rough", 5.0, 100.0, 0.10), ("slightly_rough", 10.0, 5.0, 0.05)]
+    assert [(p.start, p.roughness, p.uncertainty) for p in build_scenario(cfg.scenario).phases] == [
+        (0.0, True, False), (5.0, False, True), (10.0, True, True)]
+    assert tuple(build_scenario(cfg.scenario).uncertainty) == (0.5, 0.4, -0.5, 1.0)
     assert build_scenario(_compose().scenario) == paper_scenario(1)
+
+
+def _leaf_fields(node_type, path=""):
+    for f in dataclasses.fields(node_type):
+        if dataclasses.is_dataclass(f.default_factory if f.default_factory is not dataclasses.MISSING else None):
+            yield from _leaf_fields(f.default_factory, f"{path}{f.name}.")
+        else:
+            yield f"{path}{f.name}", f
+
+
+@pytest.mark.parametrize("node_type", [schema.RobotConfig, schema.TerrainConfig, schema.ZoneConfig,
+                                       schema.PhaseConfig, schema.ScenarioConfig, schema.NDOConfig, schema.NNConfig,
+                                       schema.PIDConfig, schema.SMCConfig, schema.OpenLoopConfig, schema.LineConfig,
+                                       schema.CircleConfig, schema.FigureEightConfig, schema.OuterLoopConfig,
+                                       schema.SimulationConfig, schema.RunConfig, schema.ReportConfig])
+def test_defaults_live_only_in_the_yaml(node_type):
+    """The schema marks every value required (MISSING); only a class's _target_ and an absent observer (None)
+    are structure. The YAML under conf/ is the one place a default lives."""
+    for key, f in _leaf_fields(node_type):
+        if key == "_target_" or key in ("ndo", "nn"):
+            continue
+        if f.default_factory is dataclasses.MISSING:
+            assert f.default == MISSING, f"{node_type.__name__}.{key} has a default in the schema"
+        else:  # an empty container of entries (zones, phases) or a nested node, never values
+            assert f.default_factory is dict or dataclasses.is_dataclass(f.default_factory), key
+
+
+@pytest.mark.parametrize("group", ["controller", "trajectory", "terrain", "scenario", "robot"])
+def test_every_option_of_every_group_gives_every_value(group):
+    for option in group_options(group):
+        cfg = _compose([f"{group}={option}"])
+        assert OmegaConf.missing_keys(cfg) == set(), (group, option)
+
+
+@pytest.mark.parametrize("cls", ["Robot", "SMC", "PID", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
+                                 "OpenLoop", "Simulation", "Terrain", "Scenario", "StraightLine", "Circle",
+                                 "FigureEight", "Kanayama", "DampingUncertainty"])
+def test_model_classes_have_no_numeric_defaults(cls):
+    import inspect
+
+    import ddmr_cli
+
+    params = inspect.signature(getattr(ddmr_cli, cls)).parameters.values()
+    defaults = {p.name: p.default for p in params if p.default is not inspect.Parameter.empty}
+    assert set(defaults) <= {"ndo", "nn", "name"}, defaults  # absent observers and a label only
 
 
 def test_both_readings_of_the_nn_parameters_ship_as_presets():
@@ -120,7 +172,7 @@ def test_config_and_python_api_give_the_same_numbers():
 
     cfg = _compose(["controller=smc_ndo", "run.n_runs=2", "simulation.duration=0.3"])
     from_config = run_config(cfg)
-    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0), name="smc_ndo"), terrain=paper_terrain(),
+    sim = make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0), name="smc_ndo"), terrain=paper_terrain(),
                      scenario=paper_scenario(1), duration=0.3)
     direct = simulate(sim, seeds=[0, 1], keep_series=[0])
     for name, arr in direct.metrics.items():

@@ -11,21 +11,22 @@ import math
 import numpy as np
 import pytest
 
+from paper import make_smc, make_pid, make_rbf, make_robot, make_simulation, make_terrain
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, RBFNetworkObserver, Robot, Simulation, Terrain,
                       TerrainZone, paper_terrain, simulate)
 from ddmr_cli.model.robot import GRAVITY
 
-ROBOT = Robot()
+ROBOT = make_robot()
 MU = 0.05
-CONSTANT_D = Terrain(zones=[TerrainZone("sand", 0.0, 0.0, MU)])
-QUIET = Terrain(zones=[TerrainZone("quiet", 0.0, 0.0, 0.0)])
+CONSTANT_D = make_terrain(TerrainZone("sand", 0.0, 0.0, MU))
+QUIET = make_terrain(TerrainZone("quiet", 0.0, 0.0, 0.0))
 J = ROBOT.inertia_matrix
 D = -MU * ROBOT.mass * GRAVITY * ROBOT.wheel_radius / 2.0 / (J[0, 0] + J[0, 1])  # ~ -7.745 rad/s^2
 
 
 def run(controller, terrain, duration, dt=1e-3, integrator="euler", initial_pose=(0.0, 0.0, 0.0),
         initial_wheel_speeds="reference", seeds=(0,), keep=(0,), robot=ROBOT):
-    sim = Simulation(controller=controller, robot=robot, terrain=terrain, dt=dt, duration=duration,
+    sim = make_simulation(controller=controller, robot=robot, terrain=terrain, dt=dt, duration=duration,
                      integrator=integrator, initial_pose=initial_pose, initial_wheel_speeds=initial_wheel_speeds,
                      divergence_bound=1e9)
     return simulate(sim, seeds=list(seeds), keep_series=list(keep))
@@ -42,7 +43,7 @@ def test_ndo_error_decays_like_exp_minus_L_t(gain):
     Euler plant the discrete error is exactly d_tilde_k = (1 - L dt)^k d_tilde_0, with d_tilde_0 = d
     (z(0) = -L w(0) gives d_hat(0) = 0). Against the continuous exp(-L t): |(1 - h)^k - e^{-kh}| <= h / (2e)."""
     dt = 1e-3
-    res = run(SMC(ndo=NonlinearDisturbanceObserver(gain)), CONSTANT_D, duration=0.3, dt=dt)
+    res = run(make_smc(ndo=NonlinearDisturbanceObserver(gain)), CONSTANT_D, duration=0.3, dt=dt)
     s = res.series[0]
     assert np.all(s["w_right"] > 0) and np.all(s["w_left"] > 0)  # turning forward: d is constant
     for wheel in ("right", "left"):
@@ -62,7 +63,7 @@ def test_ndo_rate_differs_between_gains():
     (0.95 / 0.98)^50."""
     errs = {}
     for gain in (50.0, 20.0):
-        s = run(SMC(ndo=NonlinearDisturbanceObserver(gain)), CONSTANT_D, duration=0.06).series[0]
+        s = run(make_smc(ndo=NonlinearDisturbanceObserver(gain)), CONSTANT_D, duration=0.06).series[0]
         errs[gain] = s["d_true_right"][50] - s["d_hat_ndo_right"][50]
     assert errs[50.0] / errs[20.0] == pytest.approx((0.95 / 0.98) ** 50, rel=1e-8)
 
@@ -74,7 +75,7 @@ def test_ndo_rk4_plant_still_decays_like_exp():
     (Euler increment) = O(dt^2 |A| |w'| / 2). Summed over the decay this adds at most dt |A| max|w'| / 2 to the
     Euler observer's own O(dt) deviation from exp(-L t), which is at most |d| L dt / (2 e)."""
     gain, dt = 50.0, 1e-3
-    s = run(SMC(ndo=NonlinearDisturbanceObserver(gain)), CONSTANT_D, duration=0.15, dt=dt,
+    s = run(make_smc(ndo=NonlinearDisturbanceObserver(gain)), CONSTANT_D, duration=0.15, dt=dt,
             integrator="rk4").series[0]
     err = s["d_true_right"] - s["d_hat_ndo_right"]
     t = s["t"]
@@ -94,7 +95,7 @@ def test_ndo_rk4_plant_still_decays_like_exp():
 def test_smc_alone_steady_error_closed_form():
     """SMC without observers: s' = -lambda s - K sat(s/Phi) - d. Inside the boundary layer the steady state is
     s = -d / (lambda + K / Phi) = 7.745 / 145 = 0.0534 rad/s (< Phi = 0.1, so inside)."""
-    s = run(SMC(), CONSTANT_D, duration=1.0).series[0]
+    s = run(make_smc(), CONSTANT_D, duration=1.0).series[0]
     expected = -D / (25.0 + 12.0 / 0.1)
     assert 0 < expected < 0.1
     np.testing.assert_allclose(s["s_right"][-200:], expected, rtol=1e-4)
@@ -108,8 +109,8 @@ def test_nn_observer_reduces_steady_error():
     the wrong sign would make it run away from d and increase |s|. The learning rate is raised to 2000 (with
     width 2, |Phi|^2 ~ 0.085 at 33 rad/s) so the adaptation settles within the short run."""
     duration = 2.5
-    plain = run(SMC(), CONSTANT_D, duration=duration).series[0]
-    nn = run(SMC(nn=RBFNetworkObserver(n_neurons=10, width=2.0, learning_rate=2000.0)), CONSTANT_D,
+    plain = run(make_smc(), CONSTANT_D, duration=duration).series[0]
+    nn = run(make_smc(nn=make_rbf(n_neurons=10, width=2.0, learning_rate=2000.0)), CONSTANT_D,
              duration=duration).series[0]
     late = slice(-500, None)
     for wheel in ("right", "left"):
@@ -123,7 +124,7 @@ def test_nn_observer_reduces_steady_error():
 
 def test_nn_observer_with_default_gains_moves_the_right_way():
     """Default (Table 3) reading: slower, but d_hat_NN already has the sign of d and |s| shrinks over time."""
-    s = run(SMC(nn=RBFNetworkObserver()), CONSTANT_D, duration=1.5).series[0]
+    s = run(make_smc(nn=make_rbf()), CONSTANT_D, duration=1.5).series[0]
     assert s["d_hat_nn_right"][-1] < 0 and s["d_hat_nn_left"][-1] < 0  # d < 0
     assert np.mean(np.abs(s["s_right"][-200:])) < np.mean(np.abs(s["s_right"][300:500]))
 
@@ -133,10 +134,10 @@ def test_nn_observer_with_default_gains_moves_the_right_way():
 # --------------------------------------------------------------------------------------------------------------
 
 ZERO_ERROR_CONTROLLERS = {
-    "smc": lambda: SMC(),
-    "smc_ndo": lambda: SMC(ndo=NonlinearDisturbanceObserver(50.0)),
-    "smc_ndo_nno": lambda: SMC(ndo=NonlinearDisturbanceObserver(50.0), nn=RBFNetworkObserver()),
-    "smc_integral": lambda: SMC(surface="integral", ndo=NonlinearDisturbanceObserver(50.0)),
+    "smc": lambda: make_smc(),
+    "smc_ndo": lambda: make_smc(ndo=NonlinearDisturbanceObserver(50.0)),
+    "smc_ndo_nno": lambda: make_smc(ndo=NonlinearDisturbanceObserver(50.0), nn=make_rbf()),
+    "smc_integral": lambda: make_smc(surface="integral", ndo=NonlinearDisturbanceObserver(50.0)),
 }
 
 
@@ -162,7 +163,7 @@ def test_zero_disturbance_zero_error_stays_zero(name):
 def test_pid_drifts_at_zero_error():
     """PID is exempt: it has no feed-forward, so at zero error it applies exactly 0 V, the wheels slow down
     (w' = -A w) and the robot falls behind the reference; the loop then needs a non-zero error to hold speed."""
-    res = run(PID(), QUIET, duration=0.5)
+    res = run(make_pid(), QUIET, duration=0.5)
     s = res.series[0]
     assert s["u_right"][0] == 0.0 and s["u_left"][0] == 0.0
     # first step: w_1 = w_0 - dt A w_0 (Euler, u = 0)
@@ -178,13 +179,13 @@ def test_pid_drifts_at_zero_error():
 
 
 @pytest.mark.parametrize("make", [
-    lambda: SMC(lam=200.0, switching_gain=100.0, ndo=NonlinearDisturbanceObserver(50.0)),
-    lambda: PID(kp=20.0, ki=10.0, kd=0.01),
+    lambda: make_smc(lam=200.0, switching_gain=100.0, ndo=NonlinearDisturbanceObserver(50.0)),
+    lambda: make_pid(kp=20.0, ki=10.0, kd=0.01),
 ], ids=["smc_big_gains", "pid_big_gains"])
 def test_applied_voltage_never_exceeds_u_max(make):
     """Harsh case: from rest, big gains, very rough terrain. The command exceeds U_max, the applied u never."""
     ctrl = make()
-    terrain = Terrain(zones=[TerrainZone("very_rough", 0.0, 100.0, 0.10)])
+    terrain = make_terrain(TerrainZone("very_rough", 0.0, 100.0, 0.10))
     res = run(ctrl, terrain, duration=0.4, initial_pose=(0.0, 0.05, 0.05), initial_wheel_speeds="rest",
               seeds=[0, 1, 2], keep=[0, 1, 2])
     u_max = ROBOT.max_voltage
@@ -203,8 +204,8 @@ def test_applied_voltage_never_exceeds_u_max(make):
 
 
 def test_smaller_supply_voltage_is_respected():
-    robot = Robot(max_voltage=12.0)
-    res = run(SMC(), paper_terrain(), duration=0.2, initial_wheel_speeds="rest", robot=robot)
+    robot = make_robot(max_voltage=12.0)
+    res = run(make_smc(), paper_terrain(), duration=0.2, initial_wheel_speeds="rest", robot=robot)
     u = np.concatenate([res.series[0]["u_right"], res.series[0]["u_left"]])
     assert np.max(np.abs(res.series[0]["u_command_right"])) > 12.0
     assert np.max(np.abs(u)) == 12.0
@@ -215,7 +216,7 @@ def test_ndo_is_fed_the_applied_voltage():
     Euler estimation error still obeys d_tilde_k = (1 - L dt)^k d exactly; fed with the unsaturated command it
     would not."""
     gain, dt = 50.0, 1e-3
-    ctrl = SMC(lam=200.0, switching_gain=100.0, ndo=NonlinearDisturbanceObserver(gain))
+    ctrl = make_smc(lam=200.0, switching_gain=100.0, ndo=NonlinearDisturbanceObserver(gain))
     # start slowly rolling forward so that sign(w) = +1 and the rolling resistance is constant
     res = run(ctrl, CONSTANT_D, duration=0.1, dt=dt, initial_wheel_speeds=(1.0, 1.0))
     s = res.series[0]

@@ -11,7 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from paper import make_smc, make_pid, make_rbf, make_simulation
 import ddmr_cli.engine.simulation as simulation_module
+from ddmr_cli import paper_terrain
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, Phase, RBFNetworkObserver, Scenario, Simulation,
                       Terrain, TerrainZone, WheelController, simulate)
 from ddmr_cli.model.scenario import DampingUncertainty
@@ -20,15 +22,16 @@ from nan_after import NaNAfter
 # short zones and phases, so that a 0.5 s run crosses every zone and phase and uses every noise channel
 TERRAIN = Terrain(zones=(TerrainZone("flat", 0.0, 0.1, 0.02), TerrainZone("very_rough", 0.15, 100.0, 0.10),
                          TerrainZone("slightly_rough", 0.3, 5.0, 0.05)), correlation_time=0.02)
-SCENARIO = Scenario("short_2", (Phase("terrain", 0.0, True, False), Phase("uncertainty", 0.15, False, True),
-                                Phase("both", 0.3, True, True)), DampingUncertainty(0.5, 0.4, -0.5, 1.0))
+SCENARIO = Scenario("short_2", (Phase("terrain", 0.0, True, False), Phase("uncertainty", 0.1, False, True),
+                                Phase("both", 0.25, True, True)), DampingUncertainty(0.5, 0.4, -0.5, 1.0),
+                    phase_clock="distance")
 SEEDS = list(range(8))
 K = 5
 
 
 def make_sim(duration=0.5, **kw):
-    ctrl = SMC(ndo=NonlinearDisturbanceObserver(50.0), nn=RBFNetworkObserver())
-    return Simulation(controller=ctrl, terrain=TERRAIN, scenario=SCENARIO, dt=1e-3, duration=duration, **kw)
+    ctrl = make_smc(ndo=NonlinearDisturbanceObserver(50.0), nn=make_rbf())
+    return make_simulation(controller=ctrl, terrain=TERRAIN, scenario=SCENARIO, dt=1e-3, duration=duration, **kw)
 
 
 def assert_metrics_equal(a, ia, b, ib):
@@ -145,7 +148,7 @@ HARSH = Terrain(zones=(TerrainZone("very_rough", 0.0, 300.0, 0.10),), correlatio
 
 def harsh_sim(bound):
     """PID on very rough terrain, started on the reference so the deviation is all due to the terrain."""
-    return Simulation(controller=PID(), terrain=HARSH, dt=1e-3, duration=0.4, initial_pose=(0.0, 0.0, 0.0),
+    return make_simulation(controller=make_pid(), terrain=HARSH, dt=1e-3, duration=0.4, initial_pose=(0.0, 0.0, 0.0),
                       divergence_bound=bound)
 
 
@@ -212,7 +215,7 @@ def test_non_finite_deviation_counts_as_divergence():
     NaN; the other run is unaffected. A NaN voltage at step 30 makes w_31 NaN (Euler), hence the pose x_32: the
     deviation is first NaN at t = 32 dt."""
     def sim(ctrl):
-        return Simulation(controller=ctrl, terrain=Terrain(), dt=1e-3, duration=0.1, initial_pose=(0.0, 0.0, 0.0),
+        return make_simulation(controller=ctrl, terrain=paper_terrain("none"), dt=1e-3, duration=0.1, initial_pose=(0.0, 0.0, 0.0),
                           divergence_bound=float("inf"))
     res = simulate(sim(NaNAfter(30)), seeds=[0, 1], keep_series=[1])
     ref = simulate(sim(NaNAfter(10**9)), seeds=[0, 1], keep_series=[1])

@@ -16,6 +16,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from paper import make_smc, make_pid, make_rbf, make_simulation
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver, Simulation,
                       paper_scenario, paper_terrain, simulate)
 from ddmr_cli.compiled import AVAILABLE
@@ -23,11 +24,11 @@ from ddmr_cli.compiled import AVAILABLE
 #: the controllers of the presets plus every switching function and surface
 CONTROLLERS = {
     "open_loop": "OpenLoop([11.0, 10.5])",
-    "pid": "PID()",
-    "pid_per_wheel": "PID(kp=[5.0, 4.0], ki=[0.1, 0.3], kd=[0.01, 0.0], anti_windup=False)",
-    "smc_sign": "SMC(switching='sign', switching_gain=4.0)",
-    "smc_tanh_integral": "SMC(switching='tanh', surface='integral', lam=[20.0, 30.0])",
-    "smc_ndo_nno": "SMC(ndo=NonlinearDisturbanceObserver([50.0, 40.0]), nn=RBFNetworkObserver(10, 2.0, 50.0))",
+    "pid": "make_pid()",
+    "pid_per_wheel": "make_pid(kp=[5.0, 4.0], ki=[0.1, 0.3], kd=[0.01, 0.0], anti_windup=False)",
+    "smc_sign": "make_smc(switching='sign', switching_gain=4.0)",
+    "smc_tanh_integral": "make_smc(switching='tanh', surface='integral', lam=[20.0, 30.0])",
+    "smc_ndo_nno": "make_smc(ndo=NonlinearDisturbanceObserver([50.0, 40.0]), nn=make_rbf())",
 }
 
 _SCRIPT = textwrap.dedent("""
@@ -35,10 +36,12 @@ _SCRIPT = textwrap.dedent("""
     {block}
     from ddmr_cli import *
     from ddmr_cli.compiled import jit_enabled
+    sys.path.insert(0, {tests_dir!r})
+    from paper import make_pid, make_rbf, make_simulation, make_smc
     out = {{}}
     for name, make in {controllers}.items():
         for scenario, integrator in ((1, "euler"), (2, "rk4")):
-            sim = Simulation(controller=eval(make), terrain=paper_terrain(), scenario=paper_scenario(scenario),
+            sim = make_simulation(controller=eval(make), terrain=paper_terrain(), scenario=paper_scenario(scenario),
                              duration={duration}, integrator=integrator)
             r = simulate(sim, [3, 4], keep_series=[4])
             out[f"{{name}}/{{scenario}}/{{integrator}}"] = {{
@@ -49,7 +52,8 @@ _SCRIPT = textwrap.dedent("""
 
 
 def _run(env_extra: dict, block: str = "", duration: float = 0.3) -> dict:
-    script = _SCRIPT.format(block=block, controllers=json.dumps(CONTROLLERS), duration=duration)
+    script = _SCRIPT.format(block=block, controllers=json.dumps(CONTROLLERS), duration=duration,
+                            tests_dir=os.path.dirname(__file__))
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=900,
                           env={**os.environ, **env_extra})
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -91,7 +95,7 @@ def test_without_numba_installed_the_same_laws_run_as_python(compiled_runs):
 
 
 def test_thread_count_does_not_change_the_numbers():
-    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0), nn=RBFNetworkObserver()),
+    sim = make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0), nn=make_rbf()),
                      terrain=paper_terrain(), scenario=paper_scenario(2), duration=0.5)
     one = simulate(sim, range(7), keep_series=[5], threads=1)
     three = simulate(sim, range(7), keep_series=[5], threads=3)
@@ -105,10 +109,13 @@ def test_thread_count_does_not_change_the_numbers():
 @pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
 def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
     script = textwrap.dedent("""
-        from ddmr_cli import PID, Simulation, simulate
+        import numpy as np
+        from ddmr_cli import paper_simulation, simulate
         from ddmr_cli.engine.kernels import stepper_for
-        simulate(Simulation(controller=PID(), duration=0.01), [0])
-        stats = stepper_for("ddmr_cli.control.pid").run_chunk.stats
+        sim = paper_simulation("controller=pid", "simulation.duration=0.01")
+        simulate(sim, [0])
+        layout = repr(np.dtype(sim.controller.state_fields()).descr)
+        stats = stepper_for("ddmr_cli.control.pid", layout).run_chunk.stats
         print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))
     """)
     env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path)}
@@ -118,3 +125,32 @@ def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
     (hits1, misses1), (hits2, misses2) = (map(int, p.stdout.split()) for p in runs)
     assert (hits1, misses1) == (0, 1)  # compiled in the first process
     assert (hits2, misses2) == (1, 0)  # loaded in the second
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
+def test_a_warm_cache_keeps_controllers_of_one_module_apart(tmp_path):
+    """SMC-NDO and SMC-NDO-NNO share the law module smc.py but not their state layout (1 vs 10 neurons): with both
+    compiled into a warm cache, one process running SMC-NDO then SMC-NDO-NNO gets each one's own numbers (it
+    once got SMC-NDO's for both, numba's on-disk index conflating the two record types)."""
+    script = textwrap.dedent("""
+        import json, sys
+        from ddmr_cli import paper_simulation, simulate
+        out = {}
+        for c in sys.argv[1:]:
+            r = simulate(paper_simulation(f"controller={c}", "simulation.duration=0.3"), [0, 1])
+            out[c] = r.metric("deviation_mae").tolist() + r.metric("d_est_mae").tolist()
+        print(json.dumps(out))
+    """)
+    env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path)}
+
+    def run(*controllers):
+        p = subprocess.run([sys.executable, "-c", script, *controllers], capture_output=True, text=True, env=env,
+                           timeout=900)
+        assert p.returncode == 0, p.stderr[-2000:]
+        return json.loads(p.stdout.strip().splitlines()[-1])
+
+    fresh = {**run("smc_ndo"), **run("smc_ndo_nno")}  # each compiled in its own process: the cache is now warm
+    both = run("smc_ndo", "smc_ndo_nno")
+    assert both == fresh
+    assert fresh["smc_ndo"] != fresh["smc_ndo_nno"]

@@ -10,7 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
+from paper import make_simulation, make_terrain
+from ddmr_cli import paper_terrain
 from ddmr_cli import Simulation, Terrain, TerrainZone, simulate
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "extending.md"
@@ -25,14 +28,19 @@ def computed_torque(tmp_path_factory):
     root = tmp_path_factory.mktemp("user_controller")
     (root / "user_computed_torque.py").write_text(source, encoding="utf-8")
     sys.path.insert(0, str(root))
+    gains = yaml.safe_load(re.search(r"<!-- extending:yaml -->\n```yaml\n(.*?)```", text, re.S).group(1))
     try:
-        yield importlib.import_module("user_computed_torque")
+        module = importlib.import_module("user_computed_torque")
+        # the page's YAML is where the gains live: build the controller from it
+        module.from_page = lambda **values: module.ComputedTorquePI(
+            **{**{k: gains[k] for k in ("kp", "ki")}, **values})
+        yield module
     finally:
         sys.path.remove(str(root))
 
 
 def test_zero_disturbance_and_zero_initial_error_keep_every_error_at_zero(computed_torque):
-    sim = Simulation(controller=computed_torque.ComputedTorquePI(), terrain=Terrain(), duration=1.0,
+    sim = make_simulation(controller=computed_torque.from_page(), terrain=paper_terrain("none"), duration=1.0,
                      initial_pose=(0.0, 0.0, 0.0))
     s = simulate(sim, [0], keep_series=[0]).series[0]
     assert np.max(np.abs(s["deviation"])) < 1e-12
@@ -40,8 +48,8 @@ def test_zero_disturbance_and_zero_initial_error_keep_every_error_at_zero(comput
 
 
 def test_the_integral_removes_a_constant_disturbance(computed_torque):
-    sand = Terrain(zones=[TerrainZone("sand", 0.0, 0.0, 0.05)])  # constant rolling resistance, no roughness
-    sim = Simulation(controller=computed_torque.ComputedTorquePI(), terrain=sand, duration=2.0,
+    sand = make_terrain(TerrainZone("sand", 0.0, 0.0, 0.05))  # constant rolling resistance, no roughness
+    sim = make_simulation(controller=computed_torque.from_page(), terrain=sand, duration=2.0,
                      initial_pose=(0.0, 0.0, 0.0))
     s = simulate(sim, [0], keep_series=[0]).series[0]
     early, late = np.max(np.abs(s["s_right"][:200])), np.max(np.abs(s["s_right"][-200:]))
@@ -53,4 +61,4 @@ def test_bad_gain_is_refused_naming_the_key(computed_torque):
     from ddmr_cli import ConfigError
 
     with pytest.raises(ConfigError, match=r"controller\.kp=-1"):
-        computed_torque.ComputedTorquePI(kp=-1)
+        computed_torque.from_page(kp=-1)

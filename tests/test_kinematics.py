@@ -19,12 +19,13 @@ import math
 import numpy as np
 import pytest
 
+from paper import make_robot, make_simulation, make_terrain
 from ddmr_cli import OpenLoop, Robot, Simulation, Terrain, TerrainZone, simulate
 from ddmr_cli.model import kinematics
 
-ROBOT = Robot()
+ROBOT = make_robot()
 R, L = ROBOT.wheel_radius, ROBOT.half_track
-QUIET = Terrain(zones=[TerrainZone("quiet", 0.0, 0.0, 0.0)])
+QUIET = make_terrain(TerrainZone("quiet", 0.0, 0.0, 0.0))
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -104,7 +105,7 @@ def steady_wheel_speeds(u):
 
 
 def drive(u, integrator, dt, duration, initial_pose=(0.0, 0.0, 0.0)):
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
                      integrator=integrator, initial_pose=initial_pose,
                      initial_wheel_speeds=tuple(steady_wheel_speeds(u)), divergence_bound=1e9)
     res = simulate(sim, seeds=[0], keep_series=[0])

@@ -7,23 +7,26 @@ gives ``w_k = w_ss + (I - A dt)^k (w0 - w_ss)`` instead.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from paper import make_smc, make_robot, make_simulation, make_terrain
+from ddmr_cli import paper_scenario
 from ddmr_cli import (SMC, NonlinearDisturbanceObserver, OpenLoop, Phase, Robot, Scenario, Simulation, Terrain,
                       TerrainZone, simulate)
 from ddmr_cli.model.robot import GRAVITY
 
-ROBOT = Robot()
-QUIET = Terrain(zones=[TerrainZone("quiet", 0.0, 0.0, 0.0)])
+ROBOT = make_robot()
+QUIET = make_terrain(TerrainZone("quiet", 0.0, 0.0, 0.0))
 U = np.array([12.0, 4.0])  # unequal, so the coupling J12 matters
 
 
 def open_loop_from_rest(integrator, dt=1e-3, duration=0.6, u=U):
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
                      integrator=integrator, initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds="rest",
                      divergence_bound=1e9)
     return simulate(sim, seeds=[0], keep_series=[0])
@@ -93,8 +96,8 @@ def test_open_loop_steady_state_is_Ku_u_over_B():
 def test_rolling_resistance_disturbance_closed_form():
     """d = -J^-1 mu m g R / 2 [1, 1] on both wheels while turning forward (docs/model.md §5); d_true records it."""
     mu = 0.05
-    terrain = Terrain(zones=[TerrainZone("sand", 0.0, 0.0, mu)])
-    sim = Simulation(controller=OpenLoop(10.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=0.2,
+    terrain = make_terrain(TerrainZone("sand", 0.0, 0.0, mu))
+    sim = make_simulation(controller=OpenLoop(10.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=0.2,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds="reference", divergence_bound=1e9)
     s = simulate(sim, seeds=[1], keep_series=[1]).series[1]
     J = ROBOT.inertia_matrix
@@ -113,8 +116,8 @@ def test_rolling_resistance_disturbance_closed_form():
 def test_roughness_disturbance_has_the_zone_scale():
     """d = -roughness n(t) with n a unit-variance OU process: the sample std of d_true is ~ roughness."""
     rough = 30.0
-    terrain = Terrain(zones=[TerrainZone("rough", 0.0, rough, 0.0)], correlation_time=0.002)
-    sim = Simulation(controller=OpenLoop(11.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=2.0,
+    terrain = make_terrain(TerrainZone("rough", 0.0, rough, 0.0), correlation_time=0.002)
+    sim = make_simulation(controller=OpenLoop(11.0), robot=ROBOT, terrain=terrain, dt=1e-3, duration=2.0,
                      initial_pose=(0.0, 0.0, 0.0), divergence_bound=1e9)
     s = simulate(sim, seeds=[5], keep_series=[5]).series[5]
     d = np.concatenate([s["d_true_right"], s["d_true_left"]])
@@ -132,13 +135,21 @@ def test_roughness_disturbance_has_the_zone_scale():
 
 @pytest.fixture(scope="module")
 def tiny_run():
-    """SMC-NDO on a two-zone rough terrain and a two-phase scenario, 0.3 s, all series kept."""
-    terrain = Terrain(zones=[TerrainZone("a", 0.0, 20.0, 0.02), TerrainZone("b", 0.12, 60.0, 0.08)])
-    scenario = Scenario("two", (Phase("p0", 0.0), Phase("p1", 0.1, roughness=True, uncertainty=True)))
-    sim = Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0)), robot=ROBOT, terrain=terrain,
-                     scenario=scenario, dt=1e-3, duration=0.3, divergence_bound=1e9)
+    sim = _tiny_sim()
     res = simulate(sim, seeds=[11], keep_series=[11])
     return res, res.series[11]
+
+
+def _tiny_sim():
+    """SMC-NDO on a two-zone rough terrain and a two-phase scenario (phases by distance travelled), 0.3 s, all
+    series kept; steady from 0.05 s, and 0.02 s after a zone's or phase's entry."""
+    terrain = make_terrain(TerrainZone("a", 0.0, 20.0, 0.02), TerrainZone("b", 0.12, 60.0, 0.08))
+    scenario = Scenario("two", (Phase("p0", 0.0, roughness=True, uncertainty=False),
+                                Phase("p1", 0.1, roughness=True, uncertainty=True)), paper_scenario(2).uncertainty,
+                        phase_clock="distance")
+    return make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), robot=ROBOT, terrain=terrain,
+                           scenario=scenario, dt=1e-3, duration=0.3, divergence_bound=1e9, settle_time=0.05,
+                           zone_settle_time=0.02)
 
 
 def test_deviation_metrics_match_series(tiny_run):
@@ -202,12 +213,34 @@ def test_segment_metrics_match_series(tiny_run):
     for z, name in enumerate(["a", "b"]):
         assert res.metric("deviation_mae", f"zone:{name}")[0] == pytest.approx(np.mean(dev[zone == z]), rel=1e-12)
         assert res.metric("iae", f"zone:{name}")[0] == pytest.approx(np.sum(dev[zone == z]) * res.dt, rel=1e-12)
-    t = s["t"]
-    for name, mask in (("p0", t < 0.1 - 1e-12), ("p1", t >= 0.1 - 1e-12)):
+    # phases by distance travelled too (phase_clock="distance"): p1 from 0.1 m on
+    in_p1 = s["distance"] >= 0.1
+    for name, mask in (("p0", ~in_p1), ("p1", in_p1)):
         assert res.metric("deviation_mae", f"phase:{name}")[0] == pytest.approx(np.mean(dev[mask]), rel=1e-12)
     # the uncertainty phase really scales the damping, the first one does not
-    assert np.all(s["damping_scale"][t < 0.1 - 1e-12] == 1.0)
-    assert np.any(s["damping_scale"][t >= 0.1 - 1e-12] != 1.0)
+    assert np.all(s["damping_scale"][~in_p1] == 1.0)
+    assert np.any(s["damping_scale"][in_p1] != 1.0)
+
+
+def test_steady_state_metrics_skip_the_settling_steps(tiny_run):
+    """``_ss`` metrics count steps from settle_time (0.05 s = step 50) on, and in a zone or phase only from
+    zone_settle_time (20 steps) after the robot entered it."""
+    res, s = tiny_run
+    dev, k = s["deviation"], np.arange(len(s["deviation"]))
+    steady = k >= 50
+    assert res.metric("deviation_mae_ss")[0] == pytest.approx(np.mean(dev[steady]), rel=1e-12)
+    assert res.metric("deviation_max_ss")[0] == np.max(dev[steady])
+    assert res.metric("e_y_mae_ss")[0] == pytest.approx(np.mean(np.abs(s["e_y"][steady])), rel=1e-12)
+    assert res.metric("itae_ss")[0] == pytest.approx(np.sum((s["t"] * dev)[steady]) * res.dt, rel=1e-12)
+    for segment, inside in (("zone:b", s["distance"] >= 0.12), ("phase:p1", s["distance"] >= 0.1),
+                            ("zone:a", s["distance"] < 0.12)):
+        entry = np.flatnonzero(inside)[0]
+        mask = inside & steady & (k - entry >= 20)
+        assert 0 < mask.sum() < inside.sum()  # the rule removes steps, and some remain
+        assert res.metric("deviation_mae_ss", segment)[0] == pytest.approx(np.mean(dev[mask]), rel=1e-12)
+    # settling longer than the run: no steady step, NaN, not an error
+    late = simulate(dataclasses.replace(_tiny_sim(), settle_time=1.0), [11])
+    assert np.isnan(late.metric("deviation_mae_ss")[0]) and np.isfinite(late.metric("deviation_mae")[0])
 
 
 def test_constant_open_loop_voltage_metrics():
@@ -215,7 +248,7 @@ def test_constant_open_loop_voltage_metrics():
     u = np.array([9.0, 5.0])
     w_ss = ROBOT.voltage_gain * u / ROBOT.damping
     dt, duration = 1e-3, 0.25
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=dt, duration=duration,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds=tuple(w_ss), divergence_bound=1e9)
     res = simulate(sim, seeds=[0])
     T = duration
@@ -234,7 +267,7 @@ def test_constant_open_loop_voltage_metrics():
 def test_negative_open_loop_voltage_mean_is_absolute():
     u = np.array([-6.0, -6.0])
     w_ss = ROBOT.voltage_gain * u / ROBOT.damping
-    sim = Simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=1e-3, duration=0.05,
+    sim = make_simulation(controller=OpenLoop(list(u)), robot=ROBOT, terrain=QUIET, dt=1e-3, duration=0.05,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds=tuple(w_ss), divergence_bound=1e9)
     res = simulate(sim, seeds=[0])
     assert res.metric("mean_voltage")[0] == pytest.approx(6.0, rel=1e-14)

@@ -12,10 +12,11 @@ import itertools
 import numpy as np
 import pytest
 
+from paper import make_smc, make_robot, make_simulation
 from ddmr_cli import SMC, NonlinearDisturbanceObserver, Robot, Simulation, compose_config, simulate
 from ddmr_cli.cli.config import build_simulation, validate_config
 from ddmr_cli.control.pid import _pd_spectral_radius
-from ddmr_cli.model.presets import paper_scenario, paper_terrain
+from ddmr_cli import paper_scenario, paper_terrain
 from ddmr_cli.model.robot import SYMMETRY_RTOL, WheelMatrix
 
 #: A model built from a matrix one ulp away from the exact one agrees with it to this relative tolerance.
@@ -23,7 +24,7 @@ ULP_RTOL = 1e-9
 
 
 def test_closed_form_inverse_and_eigenvalues_match_linear_algebra():
-    for robot in (Robot(), Robot(mass=20.0), Robot(mass=5.0, track_width=0.4), Robot(yaw_inertia=2.0)):
+    for robot in (make_robot(), make_robot(mass=20.0), make_robot(mass=5.0, track_width=0.4), make_robot(yaw_inertia=2.0)):
         J = robot.inertia
         np.testing.assert_allclose(J.inverse().to_array() @ J.to_array(), np.eye(2), atol=1e-14)
         np.testing.assert_allclose(sorted(J.eigenvalues), np.linalg.eigvalsh(J.to_array()), rtol=1e-13)
@@ -31,12 +32,12 @@ def test_closed_form_inverse_and_eigenvalues_match_linear_algebra():
 
 
 def test_the_papers_plant_poles_are_9_72_and_14_67_per_second():
-    common, differential = Robot().drift.eigenvalues
+    common, differential = make_robot().drift.eigenvalues
     assert abs(common - 9.72) < 0.01 and abs(differential - 14.67) < 0.01
 
 
 def test_a_matrix_symmetric_to_one_ulp_is_accepted_and_a_clearly_asymmetric_one_refused():
-    exact = Robot().inverse_inertia.to_array()
+    exact = make_robot().inverse_inertia.to_array()
     off = exact.copy()
     off[0, 0] = np.nextafter(off[0, 0], 0.0)  # what an AVX-512 LAPACK kernel gives
     m = WheelMatrix.of(off)
@@ -60,11 +61,11 @@ def test_a_grid_of_robots_builds_validates_and_runs(mass, track_width, yaw_inert
 
 
 def test_a_model_from_a_matrix_perturbed_by_one_ulp_runs_within_tolerance(monkeypatch):
-    def simulation():
-        return Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(50.0)), terrain=paper_terrain(),
-                          scenario=paper_scenario(2), duration=2.0)
+    def scenario_2():
+        return make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), terrain=paper_terrain(),
+                               scenario=paper_scenario(2), duration=2.0)
 
-    exact = simulate(simulation(), seeds=[0, 1, 2])
+    exact = simulate(scenario_2(), seeds=[0, 1, 2])
 
     def perturbed_inverse(self):
         m = self.to_array()
@@ -73,10 +74,10 @@ def test_a_model_from_a_matrix_perturbed_by_one_ulp_runs_within_tolerance(monkey
         inv[1, 1] = np.nextafter(np.nextafter(inv[1, 1], np.inf), np.inf)
         return WheelMatrix.of(inv)
 
-    exact_p = Robot().inverse_inertia.p
+    exact_p = make_robot().inverse_inertia.p
     monkeypatch.setattr(WheelMatrix, "inverse", perturbed_inverse)
-    assert Robot().inverse_inertia.p > exact_p  # the perturbation reaches the model
-    perturbed = simulate(simulation(), seeds=[0, 1, 2])
+    assert make_robot().inverse_inertia.p > exact_p  # the perturbation reaches the model
+    perturbed = simulate(scenario_2(), seeds=[0, 1, 2])
     for name in ("deviation_mae", "e_x_mae", "e_y_mae", "chattering", "d_est_mae", "electrical_energy"):
         np.testing.assert_allclose(perturbed.metric(name), exact.metric(name), rtol=ULP_RTOL, err_msg=name)
 

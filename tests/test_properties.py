@@ -10,6 +10,7 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
+from paper import make_smc, make_pid, make_robot, make_simulation, make_terrain
 from ddmr_cli import PID, SMC, NonlinearDisturbanceObserver, Robot, Simulation, Terrain, TerrainZone, simulate
 from ddmr_cli.model import kinematics
 from ddmr_cli import checks as validate
@@ -106,7 +107,7 @@ def terrains_and_distances(draw):
     starts = [0.0] + list(np.cumsum(gaps))
     zones = [TerrainZone(f"z{i}", float(s), 1.0, 0.0) for i, s in enumerate(starts)]
     distance = draw(st.one_of(st.floats(0.0, starts[-1] + 30.0), st.sampled_from(starts)))
-    return Terrain(zones=zones), starts, distance
+    return make_terrain(*zones), starts, distance
 
 
 @FAST
@@ -133,7 +134,7 @@ def test_zone_index_vectorised(case):
 # saturation inside the engine
 # --------------------------------------------------------------------------------------------------------------
 
-ROUGH = Terrain(zones=[TerrainZone("rough", 0.0, 100.0, 0.1)])
+ROUGH = make_terrain(TerrainZone("rough", 0.0, 100.0, 0.1))
 
 
 @SLOW
@@ -141,9 +142,9 @@ ROUGH = Terrain(zones=[TerrainZone("rough", 0.0, 100.0, 0.1)])
        u_max=st.floats(3.0, 30.0), seed=st.integers(0, 2**31))
 def test_smc_applied_voltage_within_u_max(lam, k, ndo, u_max, seed):
     assume(lam + k / 0.1 < 1990.0)  # a step the validator accepts (dt (lambda + K / Phi) < 2 for Euler)
-    robot = Robot(max_voltage=u_max)
-    ctrl = SMC(lam=lam, switching_gain=k, ndo=NonlinearDisturbanceObserver(50.0) if ndo else None)
-    sim = Simulation(controller=ctrl, robot=robot, terrain=ROUGH, dt=1e-3, duration=0.05,
+    robot = make_robot(max_voltage=u_max)
+    ctrl = make_smc(lam=lam, switching_gain=k, ndo=NonlinearDisturbanceObserver(50.0) if ndo else None)
+    sim = make_simulation(controller=ctrl, robot=robot, terrain=ROUGH, dt=1e-3, duration=0.05,
                      initial_pose=(0.0, 0.0, 0.0), initial_wheel_speeds="rest", divergence_bound=1e9)
     res = simulate(sim, seeds=[seed], keep_series=[seed])
     s = res.series[seed]
@@ -160,13 +161,13 @@ def test_smc_applied_voltage_within_u_max(lam, k, ndo, u_max, seed):
 @SLOW
 @given(kp=st.floats(0.0, 50.0), ki=st.floats(0.0, 50.0), kd=st.floats(0.0, 0.05), seed=st.integers(0, 1000))
 def test_pid_applied_voltage_within_u_max(kp, ki, kd, seed):
-    g = max(Robot().input_gain.eigenvalues)
+    g = max(make_robot().input_gain.eigenvalues)
     assume(_pd_spectral_radius(1e-3 * g * kp, g * kd) < 0.999)  # a sampled loop the validator accepts
-    sim = Simulation(controller=PID(kp=kp, ki=ki, kd=kd), terrain=ROUGH, dt=1e-3, duration=0.05,
+    sim = make_simulation(controller=make_pid(kp=kp, ki=ki, kd=kd), terrain=ROUGH, dt=1e-3, duration=0.05,
                      initial_wheel_speeds="rest", divergence_bound=1e9)
     res = simulate(sim, seeds=[seed], keep_series=[seed])
     u = np.concatenate([res.series[seed]["u_right"], res.series[seed]["u_left"]])
-    assert np.all(np.abs(u) <= Robot().max_voltage)
+    assert np.all(np.abs(u) <= make_robot().max_voltage)
     assert 0.0 <= res.metric("saturation_fraction")[0] <= 1.0
 
 

@@ -3,11 +3,13 @@ computed from time series (the NN's share, the voltage spectrum)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
+from paper import make_robot
 from ddmr_cli.report import plotting as P
 from ddmr_cli.report import signals as S
 
@@ -102,11 +104,13 @@ def test_nn_share_on_constructed_signals():
 def test_nominal_input_inverse_is_the_models():
     from ddmr_cli.model.robot import NominalModel, Robot, voltage_for
 
-    g_inv = S.nominal_input_inverse({"mass": 15.0, "wheel_radius": 0.03})
+    robot = make_robot(mass=20.0, wheel_radius=0.04)
+    g_inv = S.nominal_input_inverse(dataclasses.asdict(robot))
     a = np.array([[1.0, -2.0]])
-    expected = voltage_for(NominalModel.from_robot(Robot(mass=15.0, wheel_radius=0.03)), 1.0, -2.0, 0.0, 0.0)
+    expected = voltage_for(NominalModel.from_robot(robot), 1.0, -2.0, 0.0, 0.0)
     assert np.allclose(g_inv(a), [expected], rtol=1e-14)
     assert S.nominal_input_inverse({"no_such_parameter": 1.0}) is None
+    assert S.nominal_input_inverse({"mass": 15.0}) is None  # an incomplete robot: no share, no guess
 
 
 def test_welch_finds_the_chattering_frequency():

@@ -13,6 +13,7 @@ import pytest
 
 from conftest import run_ddmr
 
+
 import ddmr_cli
 from ddmr_cli.cli import io, sweep
 

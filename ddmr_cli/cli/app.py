@@ -164,10 +164,13 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
-    result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads)
+    result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
+                      bands=bool(cfg.run.bands))
     io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
-    io.write_csv(out / io.METRICS_CSV, result.rows())
-    io.write_csv(out / io.SEGMENTS_CSV, result.rows(segments=True))
+    io.write_csv(out / io.METRICS_CSV, result.iter_rows())
+    io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
+    if result.bands:
+        io.write_bands(out / io.BANDS, result.bands)
     if result.series:
         io.write_series(out / io.SERIES, result.series)
         if cfg.run.plots:

@@ -41,9 +41,9 @@ def machine_line() -> str:
 
 
 def _simulation(controller: str, duration: float):
-    from ddmr_cli.cli.config import build_simulation, compose_config
+    from ddmr_cli.cli.config.presets import paper_simulation
 
-    return build_simulation(compose_config([f"controller={controller}", f"simulation.duration={duration}"]))
+    return paper_simulation(f"controller={controller}", f"simulation.duration={duration}")
 
 
 def engine_throughput(batch: int, controller: str, duration: float, threads: int = 1) -> float:
@@ -68,10 +68,9 @@ def python_throughput(controller: str, duration: float) -> float:
 
 def compile_time() -> tuple[float, float]:
     """Seconds of a first tiny run with empty caches (compilation) and with the caches filled."""
-    code = ("import time; t = time.perf_counter(); from ddmr_cli import Simulation, simulate, SMC, "
-            "NonlinearDisturbanceObserver, RBFNetworkObserver; "
-            "simulate(Simulation(controller=SMC(ndo=NonlinearDisturbanceObserver(), nn=RBFNetworkObserver()), "
-            "duration=0.01), [0]); print(time.perf_counter() - t)")
+    code = ("import time; t = time.perf_counter(); from ddmr_cli import paper_simulation, simulate; "
+            "simulate(paper_simulation('controller=smc_ndo_nno', 'simulation.duration=0.01'), [0]); "
+            "print(time.perf_counter() - t)")
     cache = tempfile.mkdtemp(prefix="ddmr-numba-cache-")
     try:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "DDMR_CACHE_DIR": cache}

@@ -10,5 +10,10 @@ from ddmr_cli.cli.app import run_job
 
 
 @hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")
-def main(cfg: DictConfig) -> None:
+def main(cfg: DictConfig) -> float | list[float] | None:
+    if cfg.get("tuning") is not None:  # a trial of a tuning study: the objective goes back to the Optuna sweeper
+        from ddmr_cli.cli.tuning import run_trial
+
+        return run_trial(cfg)
     run_job(cfg)
+    return None

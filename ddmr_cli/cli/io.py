@@ -18,6 +18,7 @@ SUMMARY = "summary.json"
 METRICS_CSV = "metrics.csv"
 SEGMENTS_CSV = "segments.csv"
 SERIES = "series.npz"
+BANDS = "bands.npz"
 CONFIG = "config.yaml"
 PLOTS_DIR = "plots"
 
@@ -73,16 +74,21 @@ def write_json(path: Path, data: Any) -> Path:
 
 
 def write_csv(path: Path, frame) -> Path:
-    """A pandas DataFrame, or a list of dicts with the same keys (written with the csv module, no pandas)."""
-    if isinstance(frame, list):
+    """A pandas DataFrame, or a list or iterator of dicts with the same keys (written with the csv module, no
+    pandas; an iterator is streamed, so its rows never all sit in memory)."""
+    if not hasattr(frame, "to_csv"):
         import csv
+        import itertools
 
         def _write(tmp: str) -> None:
+            rows = iter(frame)
+            first = next(rows, None)
             with open(tmp, "w", newline="", encoding="utf-8") as fh:
-                writer = csv.DictWriter(fh, fieldnames=list(frame[0]) if frame else [])
+                writer = csv.DictWriter(fh, fieldnames=list(first) if first is not None else [])
                 writer.writeheader()
-                writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in row.items()}
-                                 for row in frame)
+                if first is not None:
+                    writer.writerows({k: repr(v) if isinstance(v, float) else v for k, v in row.items()}
+                                     for row in itertools.chain([first], rows))
 
         return atomic_write(path, _write)
     return atomic_write(path, lambda tmp: frame.to_csv(tmp, index=False))
@@ -95,6 +101,17 @@ def write_series(path: Path, series: dict[int, dict[str, np.ndarray]]) -> Path:
     def _write(tmp: str) -> None:
         with open(tmp, "wb") as fh:
             np.savez_compressed(fh, **arrays)
+
+    return atomic_write(path, _write)
+
+
+def write_bands(path: Path, bands: dict[str, np.ndarray]) -> Path:
+    """Across-seed bands (:meth:`ddmr_cli.engine.bands.BandAccumulator.arrays`), uncompressed: key ``t`` and
+    ``<channel>/mean|p05|p95``."""
+
+    def _write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **bands)
 
     return atomic_write(path, _write)
 

@@ -29,7 +29,7 @@ from ddmr_cli.cli import io
 
 LOCK = ".ddmr.lock"
 #: job outputs (besides summary.json) a job writes; removed before a job writes new ones
-OUTPUTS = (io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV, io.SERIES, io.PLOTS_DIR)
+OUTPUTS = (io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV, io.SERIES, io.BANDS, io.PLOTS_DIR)
 #: the files a job's results cannot do without (tables and config); series and plots serve figures only
 REQUIRED = (io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV)
 #: longest job dir name (bytes); file systems allow 255

@@ -33,6 +33,7 @@ commands:
                             ddmr run -m +experiment=table4            # Table 4: 4 controllers x 2 scenarios
                             ddmr run -m controller=smc,smc_ndo controller.switching_gain=4,8,12
                             ddmr run -m +experiment=table4 launcher=slurm cluster.partition=compute
+                            ddmr run -m +tune=smc_ndo                 # tune gains (Optuna); ddmr report it
                           add report=true to write the report when the run or sweep ends
   explain KEY [OVERRIDES] a config key's meaning, unit, value, valid range and docs/model.md section
   report [PATH] [--out DIR] [--margin 0.1mm]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
@@ -46,7 +47,7 @@ _INFO_FLAGS = frozenset({"--help", "-h", "--hydra-help", "--version", "--info", 
                          "--shell-completion", "-sc"})
 _VALUE_FLAGS = frozenset({"--cfg", "-c", "--package", "-p", "--info", "-i", "--config-path", "-cp", "--config-name",
                           "-cn", "--config-dir", "-cd", "--experimental-rerun", "--shell-completion", "-sc"})
-GROUPS = ("robot", "terrain", "controller", "scenario", "trajectory", "experiment", "launcher")
+GROUPS = ("robot", "terrain", "controller", "scenario", "trajectory", "experiment", "launcher", "tune", "objective")
 
 
 def _split_args(argv: Sequence[str]) -> tuple[list[str], dict[str, str | bool]]:
@@ -144,6 +145,7 @@ class Launch:
     plan: tuple[dict, ...] = ()
     report: bool = False
     margin: float | None = None
+    study: bool = False
 
 
 def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: str = "config",
@@ -186,8 +188,13 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             Margin.parse(margin)
         except ValueError as exc:
             raise UsageError(f"report.margin={margin}: {exc}") from None
-        plan = sweep.plan_jobs(overrides, base) if multirun else [{"dir": "", "overrides": overrides}]
-        if not plan:
+        from ddmr_cli.cli import tuning
+
+        study = multirun and tuning.is_study(base)
+        session = tuning.prepare_study(base, overrides) if study else []  # checks; the rest of the budget
+        plan = [] if study else (sweep.plan_jobs(overrides, base) if multirun else
+                                 [{"dir": "", "overrides": overrides}])
+        if multirun and not study and not plan:
             empty = next((o.input_line for o in parsed if o.is_sweep_override() and not list(o.sweep_string_iterator())),
                          "hydra.sweeper.params")
             raise UsageError(f"{empty}: the sweep has no jobs (an empty range or list); nothing to run")
@@ -200,7 +207,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             sim = validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here
             est = job_estimate(cfg, sim)
             largest = est if largest is None or est.total > largest.total else largest
-        if multirun:
+        if multirun and largest is not None:
             at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
                                      len(plan))
             budget.check(largest, base.run.get("max_memory_gb"), at_once, (base.get("cluster") or {}).get("mem_gb"))
@@ -210,8 +217,9 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         raise UsageError(message(exc, current)) from None
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise UsageError(_missing_plugin(exc, overrides) or _explain(exc, overrides)) from None
-    pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}"]
-    return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin)
+    pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}", *session]
+    return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin,
+                  study)
 
 
 def _refuse_shared_dirs(plan: list[dict], subdir: list[str]) -> None:
@@ -268,7 +276,11 @@ def finish(launch: Launch) -> int:
     could not be written, or with a failed job, exits 1; a job's file-system fault is repeated as one line."""
     from ddmr_cli.cli import io, sweep
 
-    if launch.multirun:
+    if launch.study:
+        from ddmr_cli.cli.tuning import finish as finish_study
+
+        status = finish_study(launch.out_dir)
+    elif launch.multirun:
         state = sweep.read_state(launch.out_dir, plan=list(launch.plan))
         status = 0 if state.ok and (launch.out_dir / sweep.JOBS_CSV).is_file() else EXIT_FAILED
         faults = [s["fault"] for _, s in state.failed if isinstance(s.get("fault"), dict)]
@@ -288,7 +300,12 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
     from ddmr_cli.report import build_report
 
     try:
-        written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
+        from ddmr_cli.report import tuning
+
+        if tuning.is_tuning_dir(path):  # studies: held-out runs at paper and tuned gains, then their report
+            written = tuning.build(path, out, margin)
+        else:
+            written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
     except (DDMRError, FileNotFoundError) as exc:
         print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return failure
@@ -328,7 +345,7 @@ def run_locked(launch: Launch) -> int:
     reaper = None
     try:
         with jobdir.DirLock(launch.out_dir):
-            if launch.multirun:
+            if launch.multirun and not launch.study:
                 print(f"ddmr: sweep of {len(launch.plan)} jobs validated -> {launch.out_dir}", file=sys.stderr)
                 os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
                 reaper = _start_reaper()
@@ -442,7 +459,7 @@ def run_help(overrides: list[str], config_name: str = "config") -> int:
     print("\n== Config groups (group=option; * = composed) ==")
     for group in GROUPS:
         options = [f"{o}*" if choices.get(group) == o else o for o in group_options(group)]
-        prefix = "+" if group == "experiment" else ""
+        prefix = "+" if group in ("experiment", "tune") else ""
         print(f"  {prefix}{group}: {', '.join(options)}")
     docs = key_docs(cfg)
     print(f"\n== Keys of the composed config ({len(docs)}): key  value  [unit]  meaning ==")

@@ -50,7 +50,7 @@ class NonlinearDisturbanceObserver:
         Observer gain L per wheel [1/s] (Table 3: 50).
     """
 
-    def __init__(self, gain=50.0) -> None:
+    def __init__(self, gain) -> None:
         self.gain = per_wheel("controller.ndo.gain", gain, positive)
 
     def law_parameters(self) -> NDOParameters:

@@ -43,7 +43,7 @@ class OpenLoop(WheelController):
     name = "open_loop"
     laws = sys.modules[__name__]
 
-    def __init__(self, voltage=0.0) -> None:
+    def __init__(self, voltage) -> None:
         self.voltage = per_wheel("controller.voltage", voltage, finite)
 
     def law_parameters(self, nominal: NominalModel, dt: float) -> OpenLoopParameters:

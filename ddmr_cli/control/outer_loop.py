@@ -26,9 +26,9 @@ class Kanayama(NamedTuple):
         Heading gain [1/m] (default 10, critically damped: ``2 sqrt(k_y)``).
     """
 
-    k_x: float = 10.0
-    k_y: float = 25.0
-    k_theta: float = 10.0
+    k_x: float
+    k_y: float
+    k_theta: float
 
     def validate(self) -> None:
         """Every gain finite and >= 0 (ConfigError on ``outer_loop.<gain>``)."""

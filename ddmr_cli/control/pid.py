@@ -93,13 +93,13 @@ class PID(WheelController):
     kp, ki, kd : float or (float, float)
         Gains per wheel [V s/rad, V/rad, V s^2/rad] (Table 3: 5, 0.1, 0.01).
     anti_windup : bool
-        Hold the integrator while saturated (default True).
+        Hold the integrator while saturated.
     """
 
     name = "pid"
     laws = sys.modules[__name__]
 
-    def __init__(self, kp=5.0, ki=0.1, kd=0.01, anti_windup: bool = True) -> None:
+    def __init__(self, *, kp, ki, kd, anti_windup: bool) -> None:
         self.kp = per_wheel("controller.kp", kp)
         self.ki = per_wheel("controller.ki", ki)
         self.kd = per_wheel("controller.kd", kd)

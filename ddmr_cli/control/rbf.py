@@ -68,8 +68,7 @@ class RBFNetworkObserver:
         Range of the centres [rad/s] (docs/model.md §6: -40, 40).
     """
 
-    def __init__(self, n_neurons: int = 10, width: float = 2.0, learning_rate=50.0,
-                 center_min: float = -40.0, center_max: float = 40.0) -> None:
+    def __init__(self, *, n_neurons: int, width: float, learning_rate, center_min: float, center_max: float) -> None:
         self.n_neurons = integer("controller.nn.n_neurons", n_neurons, 1)
         self.width = positive("controller.nn.width", width)
         self.learning_rate = per_wheel("controller.nn.learning_rate", learning_rate, positive)

@@ -129,8 +129,7 @@ class SMC(WheelController):
 
     laws = sys.modules[__name__]
 
-    def __init__(self, lam=25.0, switching_gain=12.0, boundary_layer: float = 0.1,
-                 surface: str = "proportional", switching: str = "sat",
+    def __init__(self, *, lam, switching_gain, boundary_layer: float, surface: str, switching: str,
                  ndo: "ndo.NonlinearDisturbanceObserver | None" = None, nn: "rbf.RBFNetworkObserver | None" = None,
                  name: str = "smc") -> None:
         self.lam = per_wheel("controller.lam", lam, positive)

@@ -15,7 +15,9 @@ class World(NamedTuple):
     """What every run of a batch shares: the reference, the scenario and terrain tables, the noise filters."""
 
     reference: np.ndarray  # (n_steps, 5): x_r [m], y_r [m], theta_r [rad], v_r [m/s], omega_r [rad/s]
-    phase: np.ndarray  # (n_steps,) scenario phase of each step (by time)
+    phase: np.ndarray  # (n_steps,) scenario phase of each step by time (phase_by_distance false)
+    phase_by_distance: bool  # phases by the distance travelled (phase_edges), else by time (phase)
+    phase_edges: np.ndarray  # starts of every phase but the first [m of distance travelled]
     roughness_on: np.ndarray  # (n_phases,) 1.0 where the phase has terrain roughness, else 0.0
     uncertainty_on: np.ndarray  # (n_phases,) True where the phase has damping uncertainty
     zone_edges: np.ndarray  # starts of every terrain zone but the first [m of distance travelled]
@@ -31,3 +33,7 @@ class World(NamedTuple):
     hp: np.ndarray  # the chattering high-pass biquad [b0, b1, b2, a0, a1, a2]
     hp_zi: np.ndarray  # its state per unit input at steady state
     phase_base: int  # metric segment index of the first phase
+    settle_steps: int  # steps from the start before a step is steady (the start-up transient)
+    zone_settle_steps: int  # steps after a zone's or phase's entry before its steps are steady there
+    bands: bool  # record every run's band channels on the band grid
+    band_stride: int  # steps between band grid points

@@ -3,8 +3,10 @@
 numba inlines the laws a compiled function calls, so the step loop must be compiled once per controller law
 module. Its copy for a controller is the template's source with the three imports of the controller's laws
 pointed at that controller's module, written to a cache directory under a name that holds a hash of every law
-module's source and of the controller's module (so an edited law gets a fresh loop: numba's own cache would not
-notice an edit in a callee's file) and imported; numba caches the copy's compiled code on disk beside it, and
+module's source, of the controller's module (so an edited law gets a fresh loop: numba's own cache would not
+notice an edit in a callee's file) and of the layout of the controller's state record (numba's on-disk index does
+not tell apart two record types that differ only in a nested array's shape, e.g. SMC-NDO's 1-neuron and
+SMC-NDO-NNO's 10-neuron weights: sharing one copy made a warm cache run the other's code), and imported; numba caches the copy's compiled code on disk beside it, and
 later processes load it instead of compiling. Without numba the same copy runs as Python.
 
 The cache directory is ``$DDMR_CACHE_DIR``, else ``$XDG_CACHE_HOME/ddmr``, else ``~/.cache/ddmr``, else a
@@ -76,13 +78,15 @@ def _source_for(law_module: str) -> str:
 
 
 @lru_cache(maxsize=None)
-def stepper_for(law_module: str) -> ModuleType:
-    """The step-loop module for the controller whose laws live in ``law_module`` (generated, imported, cached).
+def stepper_for(law_module: str, layout: str = "") -> ModuleType:
+    """The step-loop module for the controller whose laws live in ``law_module`` and whose state record has the
+    ``layout`` given (its dtype's description; generated, imported, cached).
 
-    The cache key covers every law module of the package and the controller's own module, which may live
-    outside the package (a user's controller)."""
+    The cache key covers every law module of the package, the controller's own module, which may live outside
+    the package (a user's controller), and the layout."""
     module_file = Path(inspect.getfile(importlib.import_module(law_module)))
-    digest = hashlib.sha256((_law_sources_digest() + law_module).encode() + module_file.read_bytes()).hexdigest()[:16]
+    key = (_law_sources_digest() + law_module + layout).encode() + module_file.read_bytes()
+    digest = hashlib.sha256(key).hexdigest()[:16]
     name = f"ddmr_stepper_{law_module.replace('.', '_')}_{digest}"
     path = cache_dir() / f"{name}.py"
     source = _source_for(law_module)

@@ -1,9 +1,14 @@
 """Metrics of one run, computed as the run goes (docs/model.md §7).
 
 The step loop calls :func:`accumulate` at every step of every run; it adds the step, in time order, to running
-sums per run for the whole run, each terrain zone and each scenario phase. Memory does not grow with the
-duration, and the rounding is the same whatever the batch size and chunk size. The metrics are built from the
-sums in :meth:`MetricAccumulator.finalize`.
+sums per run for the whole run, each terrain zone and each scenario phase, and to a second, steady-state set of
+the same sums that counts only the steps after settling: from ``settle_time`` on (the start-up transient) for the whole run, and for a zone
+(phase) from ``settle_time`` on and ``zone_settle_time`` after the run entered it. A step is added once, to the run's
+block (the sums since its segments last changed, :func:`flush`), and a block is added to each of its segments
+when they change and at the end: 26 additions a step instead of up to 156. Memory does not grow with the
+duration, and the rounding is the same whatever the batch size and chunk size (blocks follow the run, not the
+chunks). The metrics are built from the
+sums in :meth:`MetricAccumulator.finalize`; the steady-state ones carry the suffix :data:`STEADY` (``_ss``).
 
 Chattering: total variation of the applied voltage per second (V/s), and the fraction of the variance of
 ``u`` that passes a 2nd-order Butterworth high-pass at ``hf_cutoff`` Hz (the "power above 10 Hz" of
@@ -51,6 +56,10 @@ METRICS: dict[str, tuple[str, str]] = {
 }
 
 
+#: Cutoff of the chattering spectrum's high-pass [Hz] (docs/model.md §7: "power above 10 Hz").
+HF_CUTOFF = 10.0
+
+
 def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """2nd-order Butterworth high-pass by the bilinear transform with pre-warping, as one biquad
     ``[b0, b1, b2, 1, a1, a2]`` (what ``scipy.signal.butter(2, cutoff, 'highpass', fs=1/dt, output='sos')``
@@ -65,60 +74,106 @@ def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarr
     return sos, np.array([-b0, b0])
 
 
-#: Per-run fields of the accumulator's state (a structured record, beside the engine's run state).
+#: Suffix of the steady-state metrics (``deviation_mae_ss``): the same metric over the steps after settling.
+STEADY = "_ss"
+
+#: Per-run fields of the accumulator's state (a structured record, beside the engine's run state): the last
+#: voltage and high-pass state, the largest deviation (all steps and steady steps), the last one, and the step at
+#: which the run entered its current zone and phase segment.
 ACCUMULATOR_FIELDS = [("u_prev", "f8", 2), ("hp_state", "f8", (2, 2)), ("started", "?"), ("dev_max", "f8"),
-                      ("dev_final", "f8")]
+                      ("dev_max_ss", "f8"), ("dev_final", "f8"), ("zone_segment", "i8"), ("zone_entry", "i8"),
+                      ("phase_segment", "i8"), ("phase_entry", "i8"), ("block", "f8", N_SUMS), ("block_key", "i8")]
 
 
 @law
-def _add(sums, r, zone_segment, phase_segment, column, value):
-    """Add ``value`` to the run's whole-run, zone and phase sums of ``column``."""
-    sums[r, 0, column] += value
-    sums[r, zone_segment, column] += value
-    sums[r, phase_segment, column] += value
+def block_key(zone_segment, phase_segment, steady, steady_zone, steady_phase):
+    """The segments a step counts in, as one number: zone and phase segment and the three steady flags."""
+    return (((zone_segment * 4096 + phase_segment) * 2 + steady) * 2 + steady_zone) * 2 + steady_phase
 
 
 @law
-def accumulate(sums, r, acc, zone_segment, phase_segment, t, dev, e_x, e_y, e_theta, saturated, u_R, u_L,
-               w_R, w_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, k_e, r_a, hp, hp_zi):
-    """Add one step of run ``r`` to ``sums[r, segment, column]`` (columns: :data:`SUMS`; docs/model.md §7).
+def flush(sums, r, acc):
+    """Add the run's block (the sums of its steps since the segments last changed) to every segment it counts in
+    (whole run, zone, phase, and their steady twins at segment index + the number of segments), and empty it."""
+    key = acc["block_key"]
+    if key < 0:
+        return
+    n = sums.shape[1] // 2
+    steady_phase, key = key % 2, key // 2
+    steady_zone, key = key % 2, key // 2
+    steady, key = key % 2, key // 2
+    p, z = key % 4096, key // 4096
+    block = acc["block"]
+    for c in range(block.shape[0]):
+        v = block[c]
+        sums[r, 0, c] += v
+        sums[r, z, c] += v
+        sums[r, p, c] += v
+        if steady:
+            sums[r, n, c] += v
+        if steady_zone:
+            sums[r, n + z, c] += v
+        if steady_phase:
+            sums[r, n + p, c] += v
+        block[c] = 0.0
+    acc["block_key"] = -1
 
-    ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]`` (direct form II transposed, as ``scipy.signal.sosfilt``),
-    its state ``acc["hp_state"]`` started at ``hp_zi * u`` on the first step (no transient); ``acc["u_prev"]`` is
-    the last voltage, for the total variation.
+
+@law
+def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, phase_segment, t, dev, e_x, e_y, e_theta, saturated,
+               u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, k_e, r_a, hp, hp_zi):
+    """Add step ``k`` of run ``r`` to ``sums[r, segment, column]`` (columns: :data:`SUMS`; docs/model.md §7).
+
+    A step is steady for the whole run from step ``settle_steps`` on, and for its zone (phase) once the run has
+    also been ``zone_settle_steps`` in that zone (phase). ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]``
+    (direct form II transposed, as ``scipy.signal.sosfilt``), its state ``acc["hp_state"]`` started at
+    ``hp_zi * u`` on the first step (no transient); ``acc["u_prev"]`` is the last voltage, for the total variation.
     """
     if not acc["started"]:
         acc["u_prev"][0], acc["u_prev"][1] = u_R, u_L
         acc["hp_state"][0, 0], acc["hp_state"][0, 1] = hp_zi[0] * u_R, hp_zi[1] * u_R
         acc["hp_state"][1, 0], acc["hp_state"][1, 1] = hp_zi[0] * u_L, hp_zi[1] * u_L
         acc["started"] = True
-    z, p = zone_segment, phase_segment
-    _add(sums, r, z, p, 0, 1.0)
-    _add(sums, r, z, p, 1, dev)
-    _add(sums, r, z, p, 2, dev * dev)
-    _add(sums, r, z, p, 3, t * dev)
-    _add(sums, r, z, p, 4, abs(e_x))
-    _add(sums, r, z, p, 5, abs(e_y))
-    _add(sums, r, z, p, 6, abs(e_theta))
-    _add(sums, r, z, p, 7, 1.0 if saturated else 0.0)
-    for k in range(2):
-        u = u_R if k == 0 else u_L
-        _add(sums, r, z, p, 8 + k, abs(u - acc["u_prev"][k]))
-        acc["u_prev"][k] = u
-        _add(sums, r, z, p, 10 + k, u * u)
-        _add(sums, r, z, p, 12 + k, u * (u - k_e * (w_R if k == 0 else w_L)) / r_a)
-        d, ndo, nn = (d_R, ndo_R, nn_R) if k == 0 else (d_L, ndo_L, nn_L)
-        _add(sums, r, z, p, 14 + k, abs(d - ndo - nn))
-        _add(sums, r, z, p, 16 + k, abs(d - ndo))
-        _add(sums, r, z, p, 18 + k, abs(s_R if k == 0 else s_L))
-        _add(sums, r, z, p, 20 + k, u)
-        y = hp[0] * u + acc["hp_state"][k, 0]
-        acc["hp_state"][k, 0] = hp[1] * u - hp[4] * y + acc["hp_state"][k, 1]
-        acc["hp_state"][k, 1] = hp[2] * u - hp[5] * y
-        _add(sums, r, z, p, 22 + k, y * y)
-        _add(sums, r, z, p, 24 + k, abs(u))
+    if zone_segment != acc["zone_segment"]:
+        acc["zone_segment"], acc["zone_entry"] = zone_segment, k
+    if phase_segment != acc["phase_segment"]:
+        acc["phase_segment"], acc["phase_entry"] = phase_segment, k
+    ss = k >= settle_steps
+    sz = ss and k - acc["zone_entry"] >= zone_settle_steps
+    sp = ss and k - acc["phase_entry"] >= zone_settle_steps
+    key = block_key(zone_segment, phase_segment, ss, sz, sp)
+    if key != acc["block_key"]:
+        flush(sums, r, acc)
+        acc["block_key"] = key
+    b = acc["block"]
+    b[0] += 1.0
+    b[1] += dev
+    b[2] += dev * dev
+    b[3] += t * dev
+    b[4] += abs(e_x)
+    b[5] += abs(e_y)
+    b[6] += abs(e_theta)
+    b[7] += 1.0 if saturated else 0.0
+    for w in range(2):
+        u = u_R if w == 0 else u_L
+        b[8 + w] += abs(u - acc["u_prev"][w])
+        acc["u_prev"][w] = u
+        b[10 + w] += u * u
+        b[12 + w] += u * (u - k_e * (w_R if w == 0 else w_L)) / r_a
+        d, ndo, nn = (d_R, ndo_R, nn_R) if w == 0 else (d_L, ndo_L, nn_L)
+        b[14 + w] += abs(d - ndo - nn)
+        b[16 + w] += abs(d - ndo)
+        b[18 + w] += abs(s_R if w == 0 else s_L)
+        b[20 + w] += u
+        y = hp[0] * u + acc["hp_state"][w, 0]
+        acc["hp_state"][w, 0] = hp[1] * u - hp[4] * y + acc["hp_state"][w, 1]
+        acc["hp_state"][w, 1] = hp[2] * u - hp[5] * y
+        b[22 + w] += y * y
+        b[24 + w] += abs(u)
     if dev > acc["dev_max"]:
         acc["dev_max"] = dev
+    if ss and dev > acc["dev_max_ss"]:
+        acc["dev_max_ss"] = dev
     acc["dev_final"] = dev
 
 
@@ -134,27 +189,42 @@ class MetricAccumulator:
     zone_names, phase_names : list of str
     hf_cutoff : float
         High-pass cutoff for the chattering spectrum fraction [Hz].
+
+    ``sums[r, j]`` holds segment ``j`` of :attr:`segments` over every step, ``sums[r, n_segments + j]`` over its
+    steady steps.
     """
 
-    def __init__(self, n_runs: int, dt: float, zone_names, phase_names, hf_cutoff: float = 10.0) -> None:
+    def __init__(self, n_runs: int, dt: float, zone_names, phase_names, hf_cutoff: float = HF_CUTOFF) -> None:
         self.n_runs, self.dt = n_runs, dt
         self.zone_names, self.phase_names = list(zone_names), list(phase_names)
         self.segments = ["total"] + [f"zone:{z}" for z in self.zone_names] + [f"phase:{p}" for p in self.phase_names]
         self.phase_base = 1 + len(self.zone_names)
-        self.sums = np.zeros((n_runs, len(self.segments), N_SUMS))
+        self.sums = np.zeros((n_runs, 2 * len(self.segments), N_SUMS))
         self.hf_cutoff = hf_cutoff
         self.hp, self.hp_zi = butterworth_highpass(hf_cutoff, dt)
 
     @staticmethod
     def initial_state(state: np.ndarray) -> None:
         """Set the accumulator fields of a run-state array (:data:`ACCUMULATOR_FIELDS`) before the first step."""
-        state["dev_max"] = -np.inf
+        state["dev_max"] = state["dev_max_ss"] = -np.inf
         state["dev_final"] = np.nan
         state["started"] = False
+        state["zone_segment"] = state["phase_segment"] = -1
+        state["block_key"] = -1
 
     def finalize(self, state: np.ndarray) -> dict[str, np.ndarray]:
-        """Metrics per run and segment from the sums and the run-state array: ``{name: array (n_runs, n_segments)}`` (NaN where a segment is empty)."""
-        col = {name: self.sums[:, :, i] for i, name in enumerate(SUMS)}
+        """Metrics per run and segment from the sums and the run-state array: ``{name: array (n_runs, n_segments)}``
+        for every metric of :data:`METRICS` and its steady-state twin ``name + STEADY`` (NaN where a segment is
+        empty)."""
+        for r in range(self.n_runs):  # the steps since each run's segments last changed
+            flush(self.sums, r, state[r])
+        n = len(self.segments)
+        every = self._metrics(self.sums[:, :n], state["dev_max"], state["dev_final"])
+        steady = self._metrics(self.sums[:, n:], state["dev_max_ss"], state["dev_final"])
+        return {**every, **{name + STEADY: values for name, values in steady.items()}}
+
+    def _metrics(self, sums: np.ndarray, dev_max: np.ndarray, dev_final: np.ndarray) -> dict[str, np.ndarray]:
+        col = {name: sums[:, :, i] for i, name in enumerate(SUMS)}
         S = {name: col[name] for name in SUMS if not name.endswith(("_R", "_L"))}
         for name in SUMS:
             if name.endswith("_R"):
@@ -188,8 +258,8 @@ class MetricAccumulator:
                 "d_est_mae_ndo": (S["abs_dtilde_ndo"] / nw).mean(axis=-1),
                 "s_mae": (S["abs_s"] / nw).mean(axis=-1),
             }
-        total_only = {"deviation_max": np.where(np.isfinite(state["dev_max"]), state["dev_max"], np.nan),
-                      "deviation_final": state["dev_final"]}
+        total_only = {"deviation_max": np.where(np.isfinite(dev_max), dev_max, np.nan),
+                      "deviation_final": np.where(S["count"][:, 0] > 0, dev_final, np.nan)}
         for key, val in total_only.items():
             arr = np.full((self.n_runs, len(self.segments)), np.nan)
             arr[:, 0] = val

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
 from ddmr_cli.compiled import law
-from ddmr_cli.engine.metrics import METRICS
 
 if TYPE_CHECKING:  # pandas is imported only when a table is asked for
     import pandas as pd
@@ -46,12 +45,16 @@ class SimulationResult:
     segments : list of str
         ``total``, then ``zone:<name>`` per terrain zone and ``phase:<name>`` per scenario phase.
     metrics : dict of str -> ndarray (n_runs, n_segments)
-        Run metrics (:data:`ddmr_cli.engine.metrics.METRICS`), NaN for diverged runs and empty segments.
+        Run metrics (:data:`ddmr_cli.engine.metrics.METRICS` and their steady-state twins ``<name>_ss``), NaN for
+        diverged runs and empty segments.
     diverged : ndarray of bool (n_runs,)
     divergence_time : ndarray (n_runs,)
         Time of divergence [s], NaN for runs that did not diverge.
     series : dict of seed -> dict of channel -> ndarray (n_steps,)
         Time series of the seeds asked for.
+    bands : dict of str -> ndarray
+        Across-seed mean and 5-95 % band of a few channels on a grid of steps
+        (:meth:`ddmr_cli.engine.bands.BandAccumulator.arrays`; empty when not asked for).
     """
 
     seeds: list[int]
@@ -66,6 +69,7 @@ class SimulationResult:
     duration: float = 0.0
     wall_time: float = 0.0
     engine: str = "compiled"
+    bands: dict[str, np.ndarray] = field(default_factory=dict)
 
     def metric(self, name: str, segment: str = "total") -> np.ndarray:
         """One metric for every run, in seed order."""
@@ -82,8 +86,11 @@ class SimulationResult:
 
     def rows(self, segments: bool = False) -> list[dict]:
         """The rows of :meth:`to_pandas` as dicts (no pandas needed)."""
+        return list(self.iter_rows(segments))
+
+    def iter_rows(self, segments: bool = False) -> Iterator[dict]:
+        """The rows of :meth:`rows`, one at a time (what the CSV writers stream)."""
         segs = list(enumerate(self.segments)) if segments else [(0, "total")]
-        rows = []
         for i, seed in enumerate(self.seeds):
             for j, seg in segs:
                 row = {"controller": self.controller, "scenario": self.scenario, "seed": seed}
@@ -91,15 +98,15 @@ class SimulationResult:
                     row["segment"] = seg
                 row["status"] = "diverged" if self.diverged[i] else "ok"
                 row["divergence_time"] = float(self.divergence_time[i])
-                row.update({m: float(self.metrics[m][i, j]) for m in METRICS})
-                rows.append(row)
-        return rows
+                row.update({m: float(values[i, j]) for m, values in self.metrics.items()})
+                yield row
 
     def summary(self) -> dict[str, float]:
-        """Across-seed mean and SD of every whole-run metric (Table 4's statistic), plus run counts."""
+        """Across-seed mean and SD of every whole-run metric and its steady-state twin (Table 4's statistic), plus
+        run counts."""
         ok = ~self.diverged
         out: dict[str, float] = {"runs": len(self.seeds), "diverged": int(self.diverged.sum())}
-        for m in METRICS:
+        for m in self.metrics:
             vals = self.metric(m)[ok]
             out[f"{m}_mean"] = float(np.mean(vals)) if vals.size else float("nan")
             out[f"{m}_sd"] = float(np.std(vals, ddof=1)) if vals.size > 1 else float("nan")

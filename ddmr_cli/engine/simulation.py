@@ -12,15 +12,16 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ddmr_cli.compiled import jit_enabled, thread_count
-from ddmr_cli.checks import finite, one_of, per_wheel, positive
+from ddmr_cli.checks import finite, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
+from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import RUN_FIELDS, World
 from ddmr_cli.engine.kernels import stepper_for
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator
@@ -36,7 +37,7 @@ from ddmr_cli.model.trajectory import StraightLine, Trajectory
 INTEGRATORS = ("euler", "rk4")
 #: bytes of standard normals per run and step buffered in a chunk (the only per-step buffer of unkept runs)
 _BYTES_PER_RUN_STEP = 8 * len(CHANNELS)
-CHUNK_BUDGET = 64 * 2**20
+CHUNK_BUDGET = 16 * 2**20
 MAX_CHUNK_STEPS = 4096
 MIN_CHUNK_STEPS = 64
 
@@ -45,38 +46,47 @@ MIN_CHUNK_STEPS = 64
 class Simulation:
     """Everything one batch of runs needs, as plain objects (no Hydra here).
 
+    Every field is required: the values live once, in the packaged config (``conf/``), and
+    :func:`ddmr_cli.paper_simulation` builds this object from it (``dataclasses.replace`` changes a part).
+
     Parameters
     ----------
     controller : WheelController
         The wheel-speed controller (its state is reset by every :func:`simulate` call).
     robot, terrain, scenario, trajectory, outer_loop
-        Model pieces; defaults are the paper's robot, no terrain, one phase, the paper's line, Kanayama.
+        Model pieces (docs/model.md §1-5).
     dt : float
-        Step [s] (docs/model.md §4: 1 ms).
+        Step [s] (docs/model.md §4).
     duration : float
-        Simulated time [s] (paper: 15).
+        Simulated time [s].
     integrator : {'euler', 'rk4'}
     initial_pose : (x, y, theta)
-        Paper: (0, 0.05, 0.05).
+        [m, m, rad].
     initial_wheel_speeds : 'reference', 'rest' or (w_R, w_L)
-        ``reference``: the wheel speeds of the reference's v_r, omega_r at t = 0 (a rolling start, the default);
+        ``reference``: the wheel speeds of the reference's v_r, omega_r at t = 0 (a rolling start);
         ``rest``: zero.
     divergence_bound : float
         A run whose deviation exceeds this [m] (or turns NaN) is marked diverged.
+    settle_time : float
+        Steady-state metrics (``<metric>_ss``) count the steps from this time [s] on (docs/model.md §7).
+    zone_settle_time : float
+        ... and per zone (phase) also from this long [s] after the run entered it.
     """
 
     controller: WheelController
-    robot: Robot = field(default_factory=Robot)
-    terrain: Terrain = field(default_factory=Terrain)
-    scenario: Scenario = field(default_factory=Scenario)
-    trajectory: Trajectory = field(default_factory=StraightLine)
-    outer_loop: Kanayama = field(default_factory=Kanayama)
-    dt: float = 1e-3
-    duration: float = 15.0
-    integrator: str = "euler"
-    initial_pose: Sequence[float] = (0.0, 0.05, 0.05)
-    initial_wheel_speeds: str | Sequence[float] = "reference"
-    divergence_bound: float = 1.0
+    robot: Robot
+    terrain: Terrain
+    scenario: Scenario
+    trajectory: Trajectory
+    outer_loop: Kanayama
+    dt: float
+    duration: float
+    integrator: str
+    initial_pose: Sequence[float]
+    initial_wheel_speeds: str | Sequence[float]
+    divergence_bound: float
+    settle_time: float
+    zone_settle_time: float
 
     @property
     def n_steps(self) -> int:
@@ -93,6 +103,8 @@ class Simulation:
         duration = positive("simulation.duration", self.duration)
         if dt > duration:
             raise ConfigError("simulation.dt", self.dt, f"must be <= simulation.duration ({duration:g})")
+        non_negative("metrics.settle_time", self.settle_time)  # >= duration: no steady step, NaN _ss metrics
+        non_negative("metrics.zone_settle_time", self.zone_settle_time)
         if not self.divergence_bound > 0:  # inf allowed: never diverge
             raise ConfigError("simulation.divergence_bound", self.divergence_bound, "must be > 0")
         if len(self.initial_pose) != 3:
@@ -123,7 +135,8 @@ def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
     return np.array(per_wheel("simulation.initial_wheel_speeds", list(spec), finite))
 
 
-def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, phase_base: int) -> World:
+def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, phase_base: int,
+           bands: BandAccumulator | None) -> World:
     dt = float(sim.dt)
     coefficients = [ou_coefficients(dt, tc) for tc in
                     (sim.terrain.correlation_time, sim.terrain.correlation_time, sim.scenario.uncertainty.correlation_time)]
@@ -131,6 +144,8 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
     return World(
         reference=np.array([sim.trajectory.reference(k * dt) for k in range(n_steps)], dtype=float).reshape(n_steps, 5),
         phase=np.ascontiguousarray(sim.scenario.phase_index(np.arange(n_steps) * dt), dtype=np.int64),
+        phase_by_distance=sim.scenario.phase_clock == "distance",
+        phase_edges=np.ascontiguousarray(sim.scenario.inner_edges, dtype=float),
         roughness_on=np.array([float(p.roughness) for p in phases]),
         uncertainty_on=np.array([bool(p.uncertainty) for p in phases]),
         zone_edges=np.ascontiguousarray(sim.terrain.inner_edges, dtype=float),
@@ -138,11 +153,13 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
         ou_a=np.array([c[0] for c in coefficients]), ou_b=np.array([c[1] for c in coefficients]),
         uncertainty=sim.scenario.uncertainty, gains=Kanayama(*map(float, sim.outer_loop)), dt=dt,
         rk4=sim.integrator == "rk4", divergence_bound=float(sim.divergence_bound), hp=hp, hp_zi=hp_zi,
-        phase_base=phase_base)
+        phase_base=phase_base, settle_steps=int(round(sim.settle_time / dt)),
+        zone_settle_steps=int(round(sim.zone_settle_time / dt)), bands=bands is not None,
+        band_stride=bands.stride if bands is not None else 1)
 
 
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
-             progress: Callable[[int, int], None] | None = None, threads: int = 0) -> SimulationResult:
+             progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True) -> SimulationResult:
     """Run one batch: one run per seed, all advanced together.
 
     Parameters
@@ -156,6 +173,9 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
         Called after every chunk of steps.
     threads : int
         Threads advancing disjoint blocks of runs (0: every core); the numbers do not depend on it.
+    bands : bool
+        Also compute the mean and 5-95 % band over the seeds of a few channels at every grid step
+        (:mod:`ddmr_cli.engine.bands`; ``SimulationResult.bands``).
 
     Returns
     -------
@@ -170,9 +190,11 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
     controller = sim.controller
     params = controller.law_parameters(NominalModel.from_robot(sim.robot), dt)
-    loop = stepper_for(controller.laws.__name__).run_chunk
+    layout = repr(np.dtype(controller.state_fields()).descr)  # one compiled copy per state layout (kernels.py)
+    loop = stepper_for(controller.laws.__name__, layout).run_chunk
     acc = MetricAccumulator(n_runs, dt, sim.terrain.names, sim.scenario.names)
-    world = _world(sim, n_steps, acc.hp, acc.hp_zi, acc.phase_base)
+    band_acc = BandAccumulator(n_steps, dt) if bands else None
+    world = _world(sim, n_steps, acc.hp, acc.hp_zi, acc.phase_base, band_acc)
     noise = NoiseStreams(seeds)
     runs = np.zeros(n_runs, dtype=np.dtype(RUN_FIELDS))
     runs["x"], runs["y"], runs["theta"] = (float(v) for v in sim.initial_pose)
@@ -185,7 +207,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     series = np.zeros((len(keep_idx), n_steps if keep_idx else 1, len(SERIES_CHANNELS)))
     slot = np.full(n_runs, -1, dtype=np.int64)
     slot[keep_idx] = np.arange(len(keep_idx))
-    chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (_BYTES_PER_RUN_STEP * n_runs))))
+    bytes_per_run_step = _BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
+    chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (bytes_per_run_step * n_runs))))
     plant, xi = sim.robot.plant(), None
     n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
     blocks = [(n_runs * i // n_threads, n_runs * (i + 1) // n_threads) for i in range(n_threads)]
@@ -196,12 +219,17 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
             while k0 < n_steps:
                 n = min(chunk, n_steps - k0)
                 xi = noise.next_chunk(n, xi)
-                args = (k0, n, world, plant, params, runs, controller_state, xi, acc.sums, accumulators, series, slot)
+                first, end = band_acc.grid_range(k0, n) if band_acc is not None else (0, 0)
+                band_buffer = np.empty((n_runs, end - first, len(BAND_CHANNELS)))
+                args = (k0, n, world, plant, params, runs, controller_state, xi, acc.sums, accumulators, series, slot,
+                        band_buffer, first)
                 if pool is None:
                     loop(*args, 0, n_runs)
                 else:
                     for future in [pool.submit(loop, *args, *block) for block in blocks]:
                         future.result()
+                if band_acc is not None:
+                    band_acc.add_chunk(band_buffer, first)
                 k0 += n
                 if progress is not None:
                     progress(k0, n_steps)
@@ -220,6 +248,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
         series={seeds[i]: {name: series[n_i, :, c].copy() for c, name in enumerate(SERIES_CHANNELS)}
                 for n_i, i in enumerate(keep_idx)},
         dt=dt, duration=n_steps * dt, wall_time=time.perf_counter() - started, engine="compiled" if jit_enabled() else "python",
+        bands=band_acc.arrays() if band_acc is not None else {},
     )
 
 

@@ -2,9 +2,10 @@
 
 Per step: measure the pose error (2), run the outer loop (3) and inverse kinematics (4)-(5), difference the
 wheel-speed reference, run the wheel controller's ``command`` law, saturate ``u``, form this step's
-disturbances (terrain zone by distance, scenario phase by time, the OU processes), compute the plant's
-acceleration (8), run the controller's ``update`` law, add the step to the metrics (7), record it if the run's
-series is kept, and integrate (explicit Euler or RK4), ``u`` and the disturbances held over the step.
+disturbances (terrain zone and scenario phase by the distance travelled, or the phase by time, the OU processes),
+compute the plant's acceleration (8), run the controller's ``update`` law, add the step to the metrics (7) and,
+on the band grid, to the seed bands, record it if the run's series is kept, and integrate (explicit Euler or
+RK4), ``u`` and the disturbances held over the step.
 
 Runs are independent scalar loops (no BLAS, nothing couples runs), so seed k gives bit-identical numbers alone
 or inside any batch, in any chunking and with any thread count. This module is the template of the compiled
@@ -21,6 +22,7 @@ from ddmr_cli.control.open_loop import command as controller_command  # controll
 from ddmr_cli.control.open_loop import start as controller_start  # controller laws
 from ddmr_cli.control.open_loop import update as controller_update  # controller laws
 from ddmr_cli.control.outer_loop import kanayama
+from ddmr_cli.engine.bands import band_row
 from ddmr_cli.engine.integrators import euler, rk4
 from ddmr_cli.engine.metrics import accumulate
 from ddmr_cli.engine.noise import ou_step
@@ -32,22 +34,23 @@ from ddmr_cli.model.terrain import zone_of
 
 @law
 def run_chunk(k0, n_steps, world, plant, params, runs, controller_state, xi, sums, accumulators, series,
-              series_slot, first_run, end_run):
+              series_slot, bands, band_first, first_run, end_run):
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; ``xi[r, j]`` are
     run r's standard normals.
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
     ``runs``, ``controller_state`` and ``accumulators`` (one record per run) are updated in place; kept runs
-    (``series_slot[r] >= 0``) are recorded into ``series[slot, k]``. Compiled, it releases the GIL, so threads
-    can advance disjoint blocks of runs at once.
+    (``series_slot[r] >= 0``) are recorded into ``series[slot, k]``, and every run's band channels on the grid
+    into ``bands[r, k // world.band_stride - band_first]`` (when ``world.bands``). Compiled, it releases the GIL,
+    so threads can advance disjoint blocks of runs at once.
     """
     for r in range(first_run, end_run):
         run_steps(k0, n_steps, world, plant, params, r, runs[r], controller_state[r], xi, sums, accumulators[r],
-                  series, series_slot[r])
+                  series, series_slot[r], bands, band_first)
 
 
 @law
-def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, series, slot):
+def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, series, slot, bands, band_first):
     """One run's steps ``k0 .. k0 + n_steps - 1`` (the loop the module docstring describes)."""
     if k0 == 0:
         controller_start(params, st, run["w"][0], run["w"][1])
@@ -76,7 +79,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, seri
         n_R = ou_step(world.ou_a[0], world.ou_b[0], n_R, xi[r, j, 0])
         n_L = ou_step(world.ou_a[1], world.ou_b[1], n_L, xi[r, j, 1])
         n_u = ou_step(world.ou_a[2], world.ou_b[2], n_u, xi[r, j, 2])
-        phase = world.phase[k]
+        phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)
         rough = world.roughness[zone] * world.roughness_on[phase]
         roll = world.roll_torque[zone]
@@ -87,11 +90,14 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, sums, acc, seri
         controller_update(params, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L)
         # metrics (7), divergence, kept series
         t = k * world.dt
-        accumulate(sums, r, acc, 1 + zone, world.phase_base + phase, t, dev, e_x, e_y, e_th, sat_R or sat_L,
+        accumulate(sums, r, acc, k, world.settle_steps, world.zone_settle_steps, 1 + zone, world.phase_base + phase, t, dev, e_x, e_y, e_th,
+                   sat_R or sat_L,
                    u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L,
                    plant.back_emf_constant, plant.armature_resistance, world.hp, world.hp_zi)
         if not dev <= world.divergence_bound and run["divergence_step"] < 0:
             run["divergence_step"] = k
+        if world.bands and k % world.band_stride == 0:
+            band_row(bands[r, k // world.band_stride - band_first], dev, e_x, e_y, e_th, u_R, u_L, s_R, s_L)
         if slot >= 0:
             record(series[slot, k], t, x, y, theta, x_r, y_r, th_r, e_x, e_y, e_th, dev, dist, w_R, w_L,
                    wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, rough, b, zone)

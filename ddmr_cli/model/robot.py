@@ -102,16 +102,16 @@ class Robot:
         Supply voltage U_max [V]; the applied voltage is saturated to +-U_max (paper 4.1: 24).
     """
 
-    mass: float = 15.0
-    wheel_radius: float = 0.03
-    track_width: float = 0.5
-    yaw_inertia: float = 0.27
-    wheel_inertia: float = 0.0075
-    torque_constant: float = 0.3
-    back_emf_constant: float = 0.3
-    armature_resistance: float = 0.7
-    viscous_friction: float = 0.01
-    max_voltage: float = 24.0
+    mass: float
+    wheel_radius: float
+    track_width: float
+    yaw_inertia: float
+    wheel_inertia: float
+    torque_constant: float
+    back_emf_constant: float
+    armature_resistance: float
+    viscous_friction: float
+    max_voltage: float
 
     def __post_init__(self) -> None:
         for name in ("mass", "wheel_radius", "track_width", "yaw_inertia", "wheel_inertia", "torque_constant",

@@ -1,7 +1,9 @@
 """Scenarios: which disturbances act when (docs/model.md §5; paper Fig. 10).
 
-A scenario is a list of phases by time. In each phase the terrain roughness and the parametric uncertainty
-(the true damping ``B(t) = B_nom (1 + delta(t))``) are on or off; rolling resistance always acts.
+A scenario is a list of phases along the distance the robot has travelled (``phase_clock: distance``, the
+default, on the same axis as the terrain zones) or along time (``phase_clock: time``). In each phase the terrain
+roughness and the parametric uncertainty (the true damping ``B(t) = B_nom (1 + delta(t))``) are on or off;
+rolling resistance always acts. Why distance: docs/model.md §5 ("One clock for zones and phases").
 """
 
 from __future__ import annotations
@@ -11,19 +13,23 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ddmr_cli.checks import finite, non_negative, positive, starts_increasing_from_zero
+from ddmr_cli.checks import finite, non_negative, one_of, positive, starts_increasing_from_zero
 from ddmr_cli.compiled import law
 from ddmr_cli.errors import ConfigError
 
 
+#: What a phase's ``start`` is measured along: the distance travelled [m] or time [s].
+PHASE_CLOCKS = ("distance", "time")
+
+
 @dataclass(frozen=True)
 class Phase:
-    """From ``start`` [s] to the next phase's start."""
+    """From ``start`` [m travelled or s, by the scenario's ``phase_clock``] to the next phase's start."""
 
     name: str
     start: float
-    roughness: bool = True
-    uncertainty: bool = False
+    roughness: bool
+    uncertainty: bool
 
 
 class DampingUncertainty(NamedTuple):
@@ -32,33 +38,36 @@ class DampingUncertainty(NamedTuple):
     Parameters
     ----------
     correlation_time : float
-        [s] (docs/model.md: 0.5).
+        [s].
     std : float
-        Stationary standard deviation (docs/model.md: 0.4).
+        Stationary standard deviation.
     low, high : float
-        Clip bounds of delta (docs/model.md: -0.5, 1.0), so ``B_true`` stays in ``[0.5, 2] B_nom``.
+        Clip bounds of delta (the paper's reading: -0.5, 1.0, so ``B_true`` stays in ``[0.5, 2] B_nom``).
     """
 
-    correlation_time: float = 0.5
-    std: float = 0.4
-    low: float = -0.5
-    high: float = 1.0
+    correlation_time: float
+    std: float
+    low: float
+    high: float
 
 
 @dataclass(frozen=True)
 class Scenario:
     """A named sequence of phases plus the uncertainty process.
 
-    Paper scenario 1: one phase, terrain only. Scenario 2: ``[0, 5) s`` terrain only, ``[5, 10) s``
-    uncertainty only (roughness off, mu kept), ``[10, 15] s`` both.
+    Paper scenario 1: one phase, terrain only. Scenario 2: ``[0, 5)`` terrain only, ``[5, 10)`` uncertainty only
+    (roughness off, mu kept), ``[10, 15]`` both, in m travelled (``phase_clock='distance'``; the paper's Fig. 10
+    gives seconds at the reference speed of 1 m/s) or in s (``phase_clock='time'``).
     """
 
-    name: str = "scenario"
-    phases: Sequence[Phase] = field(default_factory=lambda: (Phase("all", 0.0),))
-    uncertainty: DampingUncertainty = field(default_factory=DampingUncertainty)
+    name: str
+    phases: Sequence[Phase]
+    uncertainty: DampingUncertainty
+    phase_clock: str
 
     def __post_init__(self):
         object.__setattr__(self, "phases", tuple(self.phases))
+        one_of("scenario.phase_clock", self.phase_clock, PHASE_CLOCKS)
         starts_increasing_from_zero("scenario.phases", [(p.name, p.start) for p in self.phases], "phase")
         u = self.uncertainty
         positive("scenario.uncertainty.correlation_time", u.correlation_time)
@@ -73,10 +82,14 @@ class Scenario:
     def names(self) -> list[str]:
         return [p.name for p in self.phases]
 
+    @property
+    def inner_edges(self) -> np.ndarray:
+        """The starts of every phase but the first (in the unit of :attr:`phase_clock`)."""
+        return np.array([p.start for p in self.phases[1:]], dtype=float)
+
     def phase_index(self, t: np.ndarray) -> np.ndarray:
-        """Index of the phase each time lies in."""
-        starts = np.array([p.start for p in self.phases[1:]], dtype=float)
-        return np.searchsorted(starts, t, side="right")
+        """Index of the phase each time lies in (``phase_clock='time'``)."""
+        return np.searchsorted(self.inner_edges, t, side="right")
 
 
 @law

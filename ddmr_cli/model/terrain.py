@@ -43,11 +43,11 @@ class Terrain:
         Ordered by ``start``; the first starts at 0, the last extends to infinity.
         Paper (Fig. 3): flat [0, 5) m, very rough [5, 10) m, slightly rough [10, inf) m.
     correlation_time : float
-        tau_c of the unit-variance OU process n(t) per wheel [s] (docs/model.md: 0.02).
+        tau_c of the unit-variance OU process n(t) per wheel [s].
     """
 
-    zones: Sequence[TerrainZone] = field(default_factory=lambda: (TerrainZone("flat", 0.0, 0.0, 0.0),))
-    correlation_time: float = 0.02
+    zones: Sequence[TerrainZone]
+    correlation_time: float
 
     def __post_init__(self):
         object.__setattr__(self, "zones", tuple(self.zones))

@@ -25,10 +25,10 @@ class Trajectory(Protocol):
 class StraightLine:
     """The paper's reference: ``x_r = x0 + v t cos(heading)``, ``y_r = y0 + v t sin(heading)`` (docs/model.md §3)."""
 
-    speed: float = 1.0
-    heading: float = 0.0
-    x0: float = 0.0
-    y0: float = 0.0
+    speed: float
+    heading: float
+    x0: float
+    y0: float
 
     def __post_init__(self) -> None:
         for name in ("speed", "heading", "x0", "y0"):
@@ -43,8 +43,8 @@ class StraightLine:
 class Circle:
     """A circle of ``radius`` driven counter-clockwise at ``speed``, starting at the origin heading along +x."""
 
-    speed: float = 1.0
-    radius: float = 2.0
+    speed: float
+    radius: float
 
     def __post_init__(self) -> None:
         finite("trajectory.speed", self.speed)
@@ -63,8 +63,8 @@ class FigureEight:
     ``v_r`` and ``omega_r`` are the exact path speed and curvature rate of the curve.
     """
 
-    amplitude: float = 3.0
-    period: float = 30.0
+    amplitude: float
+    period: float
 
     def __post_init__(self) -> None:
         positive("trajectory.amplitude", self.amplitude)

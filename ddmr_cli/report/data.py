@@ -196,6 +196,22 @@ class Bands:
     def __contains__(self, channel: str) -> bool:
         return channel in self.mean and channel in self.p05 and channel in self.p95
 
+    def on(self, t: "np.ndarray") -> "Bands | None":
+        """The bands on the time axis ``t`` of a kept series (linear interpolation from the band's grid of every
+        few steps, docs/model.md §7), or None when the grid does not span ``t``."""
+        import numpy as np
+
+        if len(self.t) == len(t) and np.allclose(self.t, t):
+            return self
+        step = float(self.t[1] - self.t[0]) if len(self.t) > 1 else 0.0
+        if len(self.t) < 2 or self.t[0] > t[0] + 1e-9 or self.t[-1] < t[-1] - step - 1e-9:
+            return None
+        out = Bands(np.asarray(t), {}, {}, {})
+        for stat in ("mean", "p05", "p95"):
+            for channel, arr in getattr(self, stat).items():
+                getattr(out, stat)[channel] = np.interp(t, self.t, arr)
+        return out
+
 
 def read_bands(path: Path) -> Bands | None:
     """``bands.npz`` (keys ``t`` and ``<channel>/mean``, ``<channel>/p05``, ``<channel>/p95``), or None when the job

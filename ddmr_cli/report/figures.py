@@ -79,7 +79,8 @@ class ScenarioFigures:
             for job in self.jobs:
                 s = self.series[job.key] = data.series(job, self.seed)
                 b = data.bands(job)
-                if b is not None and len(b.t) == len(s["t"]) and np.allclose(b.t, s["t"]):
+                b = b.on(s["t"]) if b is not None else None
+                if b is not None:
                     self.bands[job.key] = b
         self.ref = self._reference_job()
         self.paper = paper_numbers()
@@ -222,7 +223,10 @@ class ScenarioFigures:
         early = early[np.isfinite(early)]
         return bool(early.size and (early.min() < lo or early.max() > hi))
 
-    def _title(self, text: str) -> str:
+    def _title(self, text: str, bands: bool = False) -> str:
+        """``text — scenario, seed k``; with ``bands`` (a figure drawing them) the mean and band are named first."""
+        if bands and self.bands:
+            return f"{text} — {self.scenario}, mean and 5–95 % band over seeds, thin: seed {self.seed}"
         return f"{text} — {self.scenario}, seed {self.seed}"
 
     def _save(self, fig, name: str, title: str, caption: str, tight: bool = True) -> None:
@@ -340,7 +344,7 @@ class ScenarioFigures:
         lo = min(float(np.nanpercentile(self._s(j)["deviation"], 0.5)) for j in self.jobs)
         ax.set_ylim(bottom=max(lo / 2, 1e-7))
         ax.set(xlabel="t [s]", ylabel="deviation [m] (log scale)",
-               title=self._title("Fig. 5/11: deviation from the reference"))
+               title=self._title("Fig. 5/11: deviation from the reference", bands=True))
         _legend(ax, self._labels())
         ax.grid(alpha=0.3, which="both")
         spans = self._spans()
@@ -371,7 +375,7 @@ class ScenarioFigures:
                                          t_min=POSE_T_MIN)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
-        axes[0].set_title(self._title("Figs. 6/12: longitudinal, lateral and heading errors"))
+        axes[0].set_title(self._title("Figs. 6/12: longitudinal, lateral and heading errors", bands=True))
         _legend(axes[0], self._labels())
         axes[-1].set_xlabel("t [s]")
         sds = []
@@ -497,7 +501,7 @@ class ScenarioFigures:
             for ax in row:
                 ax.grid(alpha=0.3)
         clipped = self._robust_ylim(axes[0, 0], [a for j in self.jobs for a in self._arrays(j, "u_right")])
-        axes[0, 0].set_title(self._title("Figs. 8/13: right-wheel control voltage"))
+        axes[0, 0].set_title(self._title("Figs. 8/13: right-wheel control voltage", bands=True))
         axes[0, 1].set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s (highlighted)")
         axes[0, 1].set_xlim(t0, t1)
         axes[-1, 0].set_xlabel("t [s]")
@@ -547,7 +551,7 @@ class ScenarioFigures:
         arrays = [a for j in jobs for w in ("right", "left") for a in self._arrays(j, f"s_{w}")]
         clipped = self._robust_ylim(axes[0, 0], arrays,
                                     extra=[sigma["right"], sigma["left"]] if show_paper else ())
-        axes[0, 0].set_title(self._title("Fig. 9: sliding variable, right wheel"))
+        axes[0, 0].set_title(self._title("Fig. 9: sliding variable, right wheel", bands=True))
         axes[0, 1].set_title("left wheel")
         axes[-1, 0].set_xlabel("t [s]")
         axes[-1, 1].set_xlabel("t [s]")

@@ -17,12 +17,22 @@ MODEL_DOC = "docs/model.md"
 
 def _register_resolvers() -> None:
     """``${ddmr.eq:a,b}``: true when the two (interpolated) strings are equal; e.g. per-job plots for one job of
-    a sweep (conf/experiment/smoke.yaml). Registered on import, in every process that composes a config."""
+    a sweep (conf/experiment/smoke.yaml); ``${ddmr.digest:text}`` (:func:`_digest`); ``${ddmr.jobdir:name}``
+    (:func:`ddmr_cli.cli.jobdir.safe_name`). Registered on import, in every process that composes a config."""
     from ddmr_cli.cli.jobdir import safe_name
 
     OmegaConf.register_new_resolver("ddmr.eq", lambda a, b: str(a) == str(b), replace=True)
+    OmegaConf.register_new_resolver("ddmr.digest", _digest, replace=True)
     # ``${ddmr.jobdir:${hydra.job.override_dirname}}``: a job's dir name, safe and bounded (conf/config.yaml)
     OmegaConf.register_new_resolver("ddmr.jobdir", lambda name="": safe_name(str(name)), replace=True)
+
+
+def _digest(text) -> str:
+    """``${ddmr.digest:text}``: 12 hex digits of SHA-256, e.g. a tuning trial's dir from its overrides (a resumed
+    study's trials get new dirs, and the same gains the same dir)."""
+    import hashlib
+
+    return hashlib.sha256(str(text).encode()).hexdigest()[:12]
 
 
 _register_resolvers()

@@ -58,6 +58,7 @@ def build_scenario(cfg: DictConfig) -> Scenario:
         name=str(cfg.name),
         phases=tuple(Phase(str(name), float(p.start), bool(p.roughness), bool(p.uncertainty)) for name, p in phases),
         uncertainty=DampingUncertainty(float(u.correlation_time), float(u.std), float(u.low), float(u.high)),
+        phase_clock=str(cfg.phase_clock),
     )
 
 
@@ -91,6 +92,8 @@ def build_simulation(cfg: DictConfig) -> Simulation:
         initial_pose=tuple(float(v) for v in sim_cfg.initial_pose),
         initial_wheel_speeds=wheel if isinstance(wheel, str) else tuple(float(v) for v in wheel),
         divergence_bound=float(sim_cfg.divergence_bound),
+        settle_time=float(cfg.metrics.settle_time),
+        zone_settle_time=float(cfg.metrics.zone_settle_time),
     )
 
 

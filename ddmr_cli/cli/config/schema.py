@@ -70,7 +70,7 @@ class ZoneConfig:
 @dataclass
 class TerrainConfig:
     name: str = param(unit="", help="label of the terrain", model=5)
-    correlation_time: float = param(0.02, unit="s", help="correlation time tau_c of the roughness process",
+    correlation_time: float = param(unit="s", help="correlation time tau_c of the roughness process",
                                     range="> 0", model=5)
     zones: Dict[str, ZoneConfig] = param(unit="", help="zones along the distance travelled: name -> {start, "
                                          "roughness, mu}", range="at least one zone", model=5, factory=dict)
@@ -78,23 +78,24 @@ class TerrainConfig:
 
 @dataclass
 class PhaseConfig:
-    start: float = param(unit="s", help="time at which the phase begins",
+    start: float = param(unit="m or s", help="distance travelled (scenario.phase_clock=distance) or time (time) "
+                         "at which the phase begins",
                          range=">= 0; the first phase starts at 0, starts increasing", model=5, paper="Fig. 10")
-    roughness: bool = param(True, unit="", help="terrain roughness on in this phase (rolling resistance is always "
+    roughness: bool = param(unit="", help="terrain roughness on in this phase (rolling resistance is always "
                             "on)", range="true | false", model=5, paper="Fig. 10")
-    uncertainty: bool = param(False, unit="", help="damping uncertainty B(t) = B_nom (1 + delta(t)) on in this "
+    uncertainty: bool = param(unit="", help="damping uncertainty B(t) = B_nom (1 + delta(t)) on in this "
                               "phase", range="true | false", model=5, paper="Fig. 10")
 
 
 @dataclass
 class UncertaintyConfig:
-    correlation_time: float = param(0.5, unit="s", help="correlation time of the OU process delta(t)", range="> 0",
+    correlation_time: float = param(unit="s", help="correlation time of the OU process delta(t)", range="> 0",
                                     model=5)
-    std: float = param(0.4, unit="1", help="standard deviation of delta(t), relative to B_nom", range=">= 0",
+    std: float = param(unit="1", help="standard deviation of delta(t), relative to B_nom", range=">= 0",
                        model=5)
-    low: float = param(-0.5, unit="1", help="lower clip of delta(t)", range="> -1 (the true damping stays positive)",
+    low: float = param(unit="1", help="lower clip of delta(t)", range="> -1 (the true damping stays positive)",
                        model=5)
-    high: float = param(1.0, unit="1", help="upper clip of delta(t)", range="> scenario.uncertainty.low", model=5)
+    high: float = param(unit="1", help="upper clip of delta(t)", range="> scenario.uncertainty.low", model=5)
 
 
 @dataclass
@@ -102,14 +103,17 @@ class ScenarioConfig:
     name: str = param(unit="", help="label of the scenario in tables and figures", model=5)
     phases: Dict[str, PhaseConfig] = param(unit="", help="phases by time: name -> {start, roughness, uncertainty}",
                                            range="at least one phase", model=5, paper="Fig. 10", factory=dict)
-    uncertainty: UncertaintyConfig = param(unit="", help="the damping uncertainty delta(t) of uncertain phases",
-                                           model=5, factory=UncertaintyConfig)
+    uncertainty: UncertaintyConfig = param(unit="", help="the damping uncertainty delta(t) of uncertain phases "
+                                           "(conf/scenario/uncertainty)", model=5, factory=UncertaintyConfig)
+    phase_clock: str = param(unit="", help="what phase starts are measured along: the distance the robot has "
+                             "travelled [m] (the terrain zones' axis) or time [s]", range="distance | time", model=5,
+                             paper="Fig. 10 (in s, at 1 m/s)")
 
 
 @dataclass
 class NDOConfig:
     _target_: str = param("ddmr_cli.control.NonlinearDisturbanceObserver", unit="", help=TARGET_HELP, model=6)
-    gain: Any = param(50.0, unit="1/s", help="observer gain L (Gamma = L I) of the nonlinear disturbance observer",
+    gain: Any = param(unit="1/s", help="observer gain L (Gamma = L I) of the nonlinear disturbance observer",
                       range=f"> 0; {PER_WHEEL}; dt * L below the integrator's stability limit", model=6,
                       paper="3.2, eqs. (21)-(22), Table 3")
 
@@ -117,48 +121,48 @@ class NDOConfig:
 @dataclass
 class NNConfig:
     _target_: str = param("ddmr_cli.control.RBFNetworkObserver", unit="", help=TARGET_HELP, model=6)
-    n_neurons: int = param(10, unit="1", help="number of RBF neurons n", range="integer >= 1", model=6,
+    n_neurons: int = param(unit="1", help="number of RBF neurons n", range="integer >= 1", model=6,
                            paper="3.3, Table 3")
-    width: float = param(2.0, unit="rad/s", help="RBF width sigma", range="> 0", model=6,
+    width: float = param(unit="rad/s", help="RBF width sigma", range="> 0", model=6,
                          paper="3.3, Table 3 vs text (two readings)")
-    learning_rate: Any = param(50.0, unit="1/s^2", help="learning rate gamma of W' = -gamma Phi(x) s^T",
+    learning_rate: Any = param(unit="1/s^2", help="learning rate gamma of W' = -gamma Phi(x) s^T",
                                range=f"> 0; {PER_WHEEL}", model=6, paper="eq. (25), Table 3 vs text (two readings)")
-    center_min: float = param(-40.0, unit="rad/s", help="lowest RBF centre c (centres (c, c), evenly spaced)",
+    center_min: float = param(unit="rad/s", help="lowest RBF centre c (centres (c, c), evenly spaced)",
                               range="finite", model=6, paper="3.3")
-    center_max: float = param(40.0, unit="rad/s", help="highest RBF centre c",
+    center_max: float = param(unit="rad/s", help="highest RBF centre c",
                               range="> controller.nn.center_min when n_neurons > 1", model=6, paper="3.3")
 
 
 @dataclass
 class PIDConfig:
     _target_: str = param("ddmr_cli.control.PID", unit="", help=TARGET_HELP, model=6)
-    kp: Any = param(5.0, unit="V s/rad", help="proportional gain K_p on the wheel-speed error e = w_d - w",
+    kp: Any = param(unit="V s/rad", help="proportional gain K_p on the wheel-speed error e = w_d - w",
                     range=f">= 0; {PER_WHEEL}; the sampled PD loop must be stable at simulation.dt", model=6,
                     paper="Table 3")
-    ki: Any = param(0.1, unit="V/rad", help="integral gain K_i", range=f">= 0; {PER_WHEEL}", model=6,
+    ki: Any = param(unit="V/rad", help="integral gain K_i", range=f">= 0; {PER_WHEEL}", model=6,
                     paper="Table 3")
-    kd: Any = param(0.01, unit="V s^2/rad", help="derivative gain K_d (backward difference)",
+    kd: Any = param(unit="V s^2/rad", help="derivative gain K_d (backward difference)",
                     range=f">= 0; {PER_WHEEL}; the sampled PD loop must be stable at simulation.dt", model=6,
                     paper="Table 3")
-    anti_windup: bool = param(True, unit="", help="clamp the integrator while the voltage is saturated",
+    anti_windup: bool = param(unit="", help="clamp the integrator while the voltage is saturated",
                               range="true | false", model=6)
 
 
 @dataclass
 class SMCConfig:
     _target_: str = param("ddmr_cli.control.SMC", unit="", help=TARGET_HELP, model=6)
-    name: str = param("smc", unit="", help="label of the controller in tables and figures", model=6)
-    lam: Any = param(25.0, unit="1/s", help="lambda: linear term of the reaching law (integral surface: "
+    name: str = param(unit="", help="label of the controller in tables and figures", model=6)
+    lam: Any = param(unit="1/s", help="lambda: linear term of the reaching law (integral surface: "
                      "s = e + lambda int e)", range=f"> 0; {PER_WHEEL}; dt * (lam + switching_gain/boundary_layer) "
                      "below the integrator's stability limit", model=6, paper="3.1, eq. (17), Table 3")
-    switching_gain: Any = param(12.0, unit="rad/s^2", help="switching gain K of K sat(s/Phi)",
+    switching_gain: Any = param(unit="rad/s^2", help="switching gain K of K sat(s/Phi)",
                                 range=f">= 0; {PER_WHEEL}; dt * (lam + switching_gain/boundary_layer) below the "
                                 "integrator's stability limit", model=6, paper="3.1, eq. (17), Table 3")
-    boundary_layer: float = param(0.1, unit="rad/s", help="boundary layer Phi of sat(s/Phi) and tanh(s/Phi)",
+    boundary_layer: float = param(unit="rad/s", help="boundary layer Phi of sat(s/Phi) and tanh(s/Phi)",
                                   range="> 0", model=6, paper="Table 3")
-    surface: str = param("proportional", unit="", help="sliding surface: s = e (eq. 10) or s = e + lambda int e",
+    surface: str = param(unit="", help="sliding surface: s = e (eq. 10) or s = e + lambda int e",
                          range="proportional | integral", model=6, paper="eq. (10)")
-    switching: str = param("sat", unit="", help="switching function of the reaching law", range="sign | sat | tanh",
+    switching: str = param(unit="", help="switching function of the reaching law", range="sign | sat | tanh",
                            model=6, paper="3.1")
     ndo: Optional[NDOConfig] = param(None, unit="", help="nonlinear disturbance observer (null: none)", model=6,
                                      paper="3.2")
@@ -169,68 +173,76 @@ class SMCConfig:
 @dataclass
 class OpenLoopConfig:
     _target_: str = param("ddmr_cli.control.OpenLoop", unit="", help=TARGET_HELP, model=6)
-    voltage: Any = param(0.0, unit="V", help="constant voltage, no feedback (plant checks)",
+    voltage: Any = param(unit="V", help="constant voltage, no feedback (plant checks)",
                          range=f"finite; {PER_WHEEL}", model=6)
 
 
 @dataclass
 class LineConfig:
     _target_: str = param("ddmr_cli.model.trajectory.StraightLine", unit="", help=TARGET_HELP, model=3)
-    speed: float = param(1.0, unit="m/s", help="reference speed v_r along the line", range="finite", model=3,
+    speed: float = param(unit="m/s", help="reference speed v_r along the line", range="finite", model=3,
                          paper="4.2")
-    heading: float = param(0.0, unit="rad", help="direction of the line", range="finite", model=3)
-    x0: float = param(0.0, unit="m", help="x of the reference at t = 0", range="finite", model=3)
-    y0: float = param(0.0, unit="m", help="y of the reference at t = 0", range="finite", model=3)
+    heading: float = param(unit="rad", help="direction of the line", range="finite", model=3)
+    x0: float = param(unit="m", help="x of the reference at t = 0", range="finite", model=3)
+    y0: float = param(unit="m", help="y of the reference at t = 0", range="finite", model=3)
 
 
 @dataclass
 class CircleConfig:
     _target_: str = param("ddmr_cli.model.trajectory.Circle", unit="", help=TARGET_HELP, model=3)
-    speed: float = param(1.0, unit="m/s", help="reference speed along the circle", range="finite", model=3)
-    radius: float = param(2.0, unit="m", help="radius of the circle", range="> 0", model=3)
+    speed: float = param(unit="m/s", help="reference speed along the circle", range="finite", model=3)
+    radius: float = param(unit="m", help="radius of the circle", range="> 0", model=3)
 
 
 @dataclass
 class FigureEightConfig:
     _target_: str = param("ddmr_cli.model.trajectory.FigureEight", unit="", help=TARGET_HELP, model=3)
-    amplitude: float = param(3.0, unit="m", help="half-width of the figure eight (lemniscate of Gerono)",
+    amplitude: float = param(unit="m", help="half-width of the figure eight (lemniscate of Gerono)",
                              range="> 0", model=3)
-    period: float = param(30.0, unit="s", help="time for one figure eight", range="> 0", model=3)
+    period: float = param(unit="s", help="time for one figure eight", range="> 0", model=3)
 
 
 @dataclass
 class OuterLoopConfig:
     """Kanayama gains (docs/model.md §3)."""
 
-    k_x: float = param(10.0, unit="1/s", help="Kanayama gain on the longitudinal error e_x", range=">= 0", model=3)
-    k_y: float = param(25.0, unit="1/m^2", help="Kanayama gain on the lateral error e_y", range=">= 0", model=3)
-    k_theta: float = param(10.0, unit="1/m", help="Kanayama gain on sin(e_theta) (critically damped: "
+    k_x: float = param(unit="1/s", help="Kanayama gain on the longitudinal error e_x", range=">= 0", model=3)
+    k_y: float = param(unit="1/m^2", help="Kanayama gain on the lateral error e_y", range=">= 0", model=3)
+    k_theta: float = param(unit="1/m", help="Kanayama gain on sin(e_theta) (critically damped: "
                            "2 sqrt(k_y))", range=">= 0", model=3)
 
 
 @dataclass
 class SimulationConfig:
-    dt: float = param(1e-3, unit="s", help="fixed time step of plant, controllers and metrics",
+    dt: float = param(unit="s", help="fixed time step of plant, controllers and metrics",
                       range="> 0; <= simulation.duration; small enough that the sampled plant, observer, sliding "
                       "surface and PID loops are stable (checked)", model=4)
-    duration: float = param(15.0, unit="s", help="simulated time of each run", range="> 0", model=4, paper="4.2")
-    integrator: str = param("euler", unit="", help="integration of the plant over a step", range="euler | rk4",
+    duration: float = param(unit="s", help="simulated time of each run", range="> 0", model=4, paper="4.2")
+    integrator: str = param(unit="", help="integration of the plant over a step", range="euler | rk4",
                             model=4)
     initial_pose: List[float] = param(unit="m, m, rad", help="initial pose [x, y, theta] of the robot",
-                                      range="3 finite numbers", model=3, paper="4.2",
-                                      factory=lambda: [0.0, 0.05, 0.05])
-    initial_wheel_speeds: Any = param("reference", unit="rad/s", help="initial wheel speeds: reference (rolling "
+                                      range="3 finite numbers", model=3, paper="4.2")
+    initial_wheel_speeds: Any = param(unit="rad/s", help="initial wheel speeds: reference (rolling "
                                       "at v_r), rest, or [w_R, w_L]", range="reference | rest | [w_R, w_L]",
                                       model=4)
-    divergence_bound: float = param(1.0, unit="m", help="deviation beyond which a run is stopped and marked "
+    divergence_bound: float = param(unit="m", help="deviation beyond which a run is stopped and marked "
                                     "diverged", range="> 0", model=7)
 
 
 @dataclass
+class MetricsConfig:
+    settle_time: float = param(unit="s", help="steady-state metrics (<metric>_ss) count the steps from this time "
+                               "on (after the start-up transient of the initial pose offset)",
+                               range=">= 0 (from simulation.duration on: no steady step, NaN)", model=7)
+    zone_settle_time: float = param(unit="s", help="per zone and phase, steady-state metrics also skip this long "
+                                    "after the robot entered it", range=">= 0", model=7)
+
+
+@dataclass
 class RunConfig:
-    n_runs: int = param(50, unit="1", help="seeds per job; Table 4 statistics are across them",
+    n_runs: int = param(unit="1", help="seeds per job; Table 4 statistics are across them",
                         range="integer >= 1", model=7, paper="Table 4 (50 runs)")
-    base_seed: int = param(0, unit="1", help="first seed: a job runs seeds base_seed .. base_seed + n_runs - 1",
+    base_seed: int = param(unit="1", help="first seed: a job runs seeds base_seed .. base_seed + n_runs - 1",
                            range="integer >= 0", model=5)
     keep_series: Any = param(unit="1", help="runs whose full time series are saved (series.npz, figures): "
                              "first:N (the job's first N seeds, any base_seed), all, none, or a list of seeds",
@@ -238,22 +250,57 @@ class RunConfig:
     max_memory_gb: Optional[float] = param(unit="GB", help="memory budget: a job (the jobs of a sweep running at "
                                            "once) whose estimate exceeds it is refused before it starts",
                                            range="null (80% of the available memory) or > 0")
-    plots: bool = param(True, unit="", help="PNG plots of the first kept seed in each job dir",
+    plots: bool = param(unit="", help="PNG plots of the first kept seed in each job dir",
                         range="true | false")
-    progress: bool = param(True, unit="", help="progress lines on the terminal and in the log",
+    progress: bool = param(unit="", help="progress lines on the terminal and in the log",
                            range="true | false")
-    threads: int = param(0, unit="1", help="threads of the compiled engine (0: all cores for a single run, 1 per "
+    bands: bool = param(unit="", help="mean and 5-95 % band over all seeds of deviation, pose errors, u and s at "
+                        "every grid step (bands.npz, drawn in the report's time-series figures)",
+                        range="true | false", model=7)
+    threads: int = param(unit="1", help="threads of the compiled engine (0: all cores for a single run, 1 per "
                          "job in a sweep)", range="integer >= 0")
 
 
 @dataclass
 class ReportConfig:
-    auto: bool = param(False, unit="", help="write the report (ddmr report) when the run or sweep ends; "
+    auto: bool = param(unit="", help="write the report (ddmr report) when the run or sweep ends; "
                        "report=true is short for report.auto=true", range="true | false")
-    margin: Optional[str] = param(None, unit="m or %", help="practical margin of the report's verdicts: a paired "
+    margin: Optional[str] = param(unit="m or %", help="practical margin of the report's verdicts: a paired "
                                   "difference whose 95% CI lies inside it is a tie (null: 0.1mm for metrics in "
                                   "metres, 5% of the reference's mean for the others)",
                                   range="null, a length (0.1mm, 1e-4) or a percentage (5%)", model=7)
+
+
+@dataclass
+class HeldOutConfig:
+    base_seed: int = param(unit="1", help="first held-out seed of the tuned-gains evaluation (ddmr report on a study)",
+                           range="integer >= 0; the held-out seeds must not overlap the tuning seeds", model=9)
+    n_runs: int = param(unit="1", help="held-out seeds per controller and scenario", range="integer >= 1", model=9)
+
+
+@dataclass
+class TuningConfig:
+    """A gain-tuning study (``ddmr run -m +tune=<controller>``; docs/model.md §9). The search space is the Optuna
+    sweeper's ``hydra.sweeper.params``; the trial's seeds are ``run.base_seed .. + run.n_runs - 1``."""
+
+    controller: str = param(unit="", help="the controller option tuned (conf/controller/<name>.yaml)", model=9)
+    objective: str = param(unit="", help="deviation: minimise the mean deviation (TPE); pareto: deviation against "
+                           "chattering (NSGA-II), a Pareto front", range="deviation | pareto", model=9)
+    n_trials: int = param(unit="1", help="the study's budget: trials in all (a resumed study runs the rest)",
+                          range="integer >= 1", model=9)
+    batch: int = param(unit="1", help="trials asked of the sampler at once and launched together (the launcher runs "
+                       "them in parallel); fixed, so the sampled gains do not depend on the launcher",
+                       range="integer >= 1", model=9)
+    seed: int = param(unit="1", help="seed of the Optuna sampler (a resumed study continues with seed + trials done)",
+                      range="integer >= 0", model=9)
+    saturation_limit: float = param(unit="1", help="constraint: mean fraction of steps with a wheel at +-U_max; a "
+                                    "trial above it (or with a diverged run) is infeasible and penalised",
+                                    range="0 <= limit < 1", model=9)
+    scenarios: Dict[str, ScenarioConfig] = param(unit="", help="the scenarios every trial simulates (the objective "
+                                                 "is the mean over them)", range="at least one", model=9,
+                                                 factory=dict)
+    held_out: HeldOutConfig = param(unit="", help="held-out seeds of the evaluation at tuned gains", model=9,
+                                    factory=HeldOutConfig)
 
 
 #: documentation of the launcher presets' ``cluster`` keys (conf/launcher/*.yaml), not model numbers
@@ -280,14 +327,18 @@ class DDMRConfig:
                                         model=3, factory=OuterLoopConfig)
     simulation: SimulationConfig = param(unit="", help="time stepping, initial state, divergence", model=4,
                                          factory=SimulationConfig)
+    metrics: MetricsConfig = param(unit="", help="how the run metrics are counted", model=7,
+                                   factory=MetricsConfig)
     run: RunConfig = param(unit="", help="seeds, kept series and display settings of a job", factory=RunConfig)
-    experiment_name: str = param("run", unit="", help="first level of the output dir outputs/<experiment_name>/")
+    experiment_name: str = param(unit="", help="first level of the output dir outputs/<experiment_name>/")
     cluster: Dict[str, Any] = param(unit="", help="launcher settings set by conf/launcher presets",
                                     entries=CLUSTER_KEYS, factory=dict)
     tags: Dict[str, Any] = param(unit="", help="free-form labels recorded with the results (+tags.note=...); not "
                                  "used by the model", factory=dict)
     report: ReportConfig = param(unit="", help="the report written at the end of a run or sweep",
                                  factory=ReportConfig)
+    tuning: Optional[TuningConfig] = param(unit="", help="gain-tuning study set by +tune=<controller> (null: none)",
+                                           model=9)
 
 
 def register_configs() -> None:

@@ -1,0 +1,87 @@
+"""Seed bands: the mean and the 5-95 % band over every seed of a batch, per step, in bounded memory (docs/model.md §7).
+
+The step loop writes a few channels of every run into a buffer that holds one chunk of steps on a grid of every
+``stride``-th step (:func:`band_row`); after each chunk :meth:`BandAccumulator.add_chunk` reduces it over the
+runs to the mean and the 5th and 95th percentiles (exact, over the runs that are still finite) and drops it. The
+buffer is bounded by the engine's chunk budget, the result by the grid: memory does not grow with the seeds.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from ddmr_cli.compiled import law
+
+#: The channels the bands cover, in the order :func:`band_row` writes them (names as in SERIES_CHANNELS).
+BAND_CHANNELS = ("deviation", "e_x", "e_y", "e_theta", "u_right", "u_left", "s_right", "s_left")
+#: Percentiles of the band [%].
+LOW, HIGH = 5.0, 95.0
+#: Most grid points of a band: the grid is every ``ceil(n_steps / MAX_POINTS)``-th step.
+MAX_POINTS = 3000
+
+
+@law
+def band_row(row, deviation, e_x, e_y, e_theta, u_R, u_L, s_R, s_L):
+    """Write one grid step of one run into ``row``, in the order of :data:`BAND_CHANNELS`."""
+    row[0], row[1], row[2], row[3] = deviation, e_x, e_y, e_theta
+    row[4], row[5], row[6], row[7] = u_R, u_L, s_R, s_L
+
+
+def band_stride(n_steps: int) -> int:
+    """Steps between two grid points of a band of ``n_steps`` steps."""
+    return max(1, math.ceil(n_steps / MAX_POINTS))
+
+
+class BandAccumulator:
+    """Mean, 5th and 95th percentile over runs at every grid step, filled chunk by chunk.
+
+    Parameters
+    ----------
+    n_steps : int
+        Steps of a run; the grid is steps ``0, stride, 2 stride, ...``.
+    dt : float
+        Step [s].
+    """
+
+    def __init__(self, n_steps: int, dt: float) -> None:
+        self.stride = band_stride(n_steps)
+        self.n_points = (n_steps - 1) // self.stride + 1
+        self.t = np.arange(self.n_points) * self.stride * dt
+        self.mean = np.full((len(BAND_CHANNELS), self.n_points), np.nan)
+        self.low = np.full_like(self.mean, np.nan)
+        self.high = np.full_like(self.mean, np.nan)
+
+    def grid_range(self, k0: int, n_steps: int) -> tuple[int, int]:
+        """The grid points ``[first, end)`` that fall on steps ``k0 .. k0 + n_steps - 1``."""
+        first = -(-k0 // self.stride)
+        end = -(-(k0 + n_steps) // self.stride)
+        return first, end
+
+    def add_chunk(self, buffer: np.ndarray, first: int) -> None:
+        """Reduce ``buffer[run, j, channel]`` (grid points ``first + j``) over the runs."""
+        n = buffer.shape[1]
+        if n == 0:
+            return
+        values = np.where(np.isfinite(buffer), buffer, np.nan)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a grid step where every run has diverged: NaN
+            finite = np.isfinite(values).all()
+            pct = np.percentile if finite else np.nanpercentile
+            mean = values.mean(axis=0) if finite else np.nanmean(values, axis=0)
+            low, high = pct(values, [LOW, HIGH], axis=0)
+        self.mean[:, first:first + n] = mean.T
+        self.low[:, first:first + n] = low.T
+        self.high[:, first:first + n] = high.T
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """``{"t": grid times, "<channel>/mean": ..., "<channel>/p05": ..., "<channel>/p95": ...}``."""
+        out = {"t": self.t}
+        for c, name in enumerate(BAND_CHANNELS):
+            out[f"{name}/mean"], out[f"{name}/p05"], out[f"{name}/p95"] = self.mean[c], self.low[c], self.high[c]
+        return out
+
+
+__all__ = ["BAND_CHANNELS", "BandAccumulator", "band_row", "band_stride"]

@@ -1,0 +1,216 @@
+"""Gain tuning through Hydra's Optuna sweeper (ddmr_cli/cli/tuning.py, docs/model.md §9): the search spaces name
+real keys, bad input is one line and exit 2, the objective's penalty rule, a study end to end (joblib and basic
+launchers give the same trials), resumption continuing the trial count, the report at tuned gains."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from omegaconf import OmegaConf
+
+from conftest import run_ddmr
+
+pytest.importorskip("optuna", reason="the tune extra is not installed (pip install -e '.[tune]')")
+
+from ddmr_cli.cli.config import compose_config, group_options, key_doc, seeds_of  # noqa: E402
+from ddmr_cli.cli.main import main  # noqa: E402
+from ddmr_cli.cli import tuning as TU  # noqa: E402
+from ddmr_cli.report.tuning import pareto_front  # noqa: E402
+
+#: a tiny study: 2 seeds, 0.4 s at a 2 ms step (every controller's loop is stable there), 4 trials
+TINY = ["run.n_runs=2", "simulation.duration=0.4", "simulation.dt=0.002", "metrics.settle_time=0.2",
+        "metrics.zone_settle_time=0.1", "tuning.held_out.n_runs=6"]
+
+
+# --- the search spaces ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("option", group_options("tune"))
+def test_search_space_names_real_keys_around_the_paper_gains(option):
+    cfg = compose_config([f"+tune={option}"], return_hydra_config=True)
+    assert cfg.tuning.controller == option and cfg.controller.get("name", "pid") == option
+    space = TU.search_space(cfg)
+    assert len(space) >= 3
+    for dim in space:
+        doc = key_doc(cfg, dim.key)  # KeyError when the key is not in the composed config
+        assert doc.unit and doc.help, dim.key  # a documented schema field, not a free-form entry
+        paper = float(doc.value)
+        assert dim.low < paper < dim.high, (dim.key, paper, dim.low, dim.high)
+        assert dim.log, f"{dim.key}: the gains span decades; the search is on a log scale"
+
+
+def test_the_study_settings_are_the_same_for_every_controller():
+    studies = [compose_config([f"+tune={o}"], return_hydra_config=True) for o in group_options("tune")]
+    for key in ("tuning.n_trials", "tuning.seed", "tuning.batch", "run.n_runs", "run.base_seed",
+                "tuning.saturation_limit", "tuning.held_out.base_seed", "tuning.held_out.n_runs",
+                "hydra.sweeper.n_trials", "hydra.sweeper.sampler.seed"):
+        assert len({str(OmegaConf.select(c, key)) for c in studies}) == 1, key
+
+
+# --- bad input ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("args, named", [
+    (["+tune=nocontroller"], "tune=nocontroller: unknown tune"),
+    (["+tune=pid", "tuning.n_trials=0"], "tuning.n_trials=0"),
+    (["+tune=pid", "controller.kp=tag(log,interval(5,1))"], "empty or inverted range"),
+    (["+tune=smc", "controller.lam=interval(3,3)"], "empty or inverted range"),
+    (["+tune=pid", "controller.kd=tag(log,interval(0,1))"], "log-scale range needs low > 0"),
+    (["+tune=pid", "controller.gain_kx=interval(1,2)"], "controller.gain_kx is not a key"),
+    (["+tune=pid", "tuning.held_out.base_seed=5"], "overlap the tuning seeds"),
+    (["+tune=smc", "objective=best"], "objective=best: unknown objective"),
+    (["+tune=smc", "simulation.duration=2", "metrics.settle_time=2"], "metrics.settle_time=2.0: must be <"),
+])
+def test_bad_study_input_is_one_line_and_exit_2(tmp_path, capsys, args, named):
+    out = tmp_path / "study"
+    assert main(["run", "-m", *args, f"hydra.sweep.dir={out}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ddmr: error: ") and named in err[0], err
+    assert not out.exists()
+
+
+# --- the objective --------------------------------------------------------------------------------------------
+
+
+def _study_cfg(*extra):
+    return compose_config(["+tune=pid", "run.n_runs=3", "simulation.duration=0.4", "simulation.dt=0.002",
+                           "metrics.settle_time=0.2", *extra])
+
+
+def test_a_feasible_trial_scores_the_mean_deviation_over_scenarios_and_runs():
+    from ddmr_cli.cli.config import validate_config
+    from ddmr_cli.engine.simulation import simulate
+
+    cfg = _study_cfg("tuning.saturation_limit=0.9")
+    outcome = TU.evaluate_gains(cfg)
+    assert outcome.feasible and outcome.violation == 0.0 and len(outcome.values) == 1
+    means = []
+    for name in cfg.tuning.scenarios:
+        result = simulate(validate_config(TU.scenario_config(cfg, name)), seeds_of(cfg), keep_series=[])
+        assert not result.diverged.any()
+        means.append(float(result.metric(TU.OBJECTIVE_METRIC).mean()))
+    assert math.isclose(outcome.values[0], sum(means) / len(means), rel_tol=1e-12)
+    assert set(outcome.per_scenario) == {"paper_1", "paper_2"}
+
+
+def test_saturation_beyond_the_limit_is_penalised_above_every_feasible_value():
+    cfg = _study_cfg("tuning.saturation_limit=0.0")
+    outcome = TU.evaluate_gains(cfg)
+    assert outcome.saturation > 0.0  # PID's start from the offset pose saturates a little
+    assert not outcome.feasible and "saturation" in outcome.reason
+    bound = float(cfg.simulation.divergence_bound)
+    # closed form: bound * (1 + violation), violation = the saturation fraction beyond the limit (0)
+    assert math.isclose(outcome.values[0], bound * (1.0 + outcome.saturation), rel_tol=1e-12)
+    assert outcome.values[0] > bound > outcome.deviation and math.isfinite(outcome.values[0])
+
+
+def test_gains_unstable_at_the_step_are_an_infeasible_trial_not_a_failure():
+    cfg = _study_cfg("controller.kd=5.0")  # the sampled PD loop is unstable at 2 ms
+    outcome = TU.evaluate_gains(cfg)
+    assert not outcome.feasible and outcome.reason.startswith("unstable") and outcome.violation == 1.0
+    assert math.isclose(outcome.values[0], 2.0 * float(cfg.simulation.divergence_bound), rel_tol=1e-12)
+    pareto = TU.evaluate_gains(_study_cfg("controller.kd=5.0", "objective=pareto"))
+    u_max, dt = float(cfg.robot.max_voltage), float(cfg.simulation.dt)
+    assert len(pareto.values) == 2 and math.isclose(pareto.values[1], 2.0 * (2.0 * u_max / dt), rel_tol=1e-12)
+
+
+def test_pareto_front_keeps_the_non_dominated_points():
+    points = [(1.0, 5.0), (2.0, 3.0), (2.5, 4.0), (3.0, 1.0), (4.0, 1.0), (0.5, 9.0)]
+    assert [points[i] for i in pareto_front(points)] == [(0.5, 9.0), (1.0, 5.0), (2.0, 3.0), (3.0, 1.0)]
+
+
+# --- end to end -----------------------------------------------------------------------------------------------
+
+
+def _study(tmp_path: Path, name: str, *extra: str, budget: int = 4) -> Path:
+    out = tmp_path / name
+    proc = run_ddmr(["run", "-m", *extra, *TINY, f"tuning.n_trials={budget}", f"hydra.sweep.dir={out}"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out
+
+
+def _trials(study: Path) -> pd.DataFrame:
+    return pd.read_csv(study / TU.TRIALS_CSV).sort_values("number").reset_index(drop=True)
+
+
+@pytest.mark.slow
+def test_a_study_end_to_end_and_its_report(tmp_path):
+    study = _study(tmp_path, "smc", "+tune=smc")
+    trials = _trials(study)
+    assert list(trials["state"]) == ["COMPLETE"] * 4 and list(trials["number"]) == [0, 1, 2, 3]
+    for _, row in trials.iterrows():  # each trial's own record is what the sweeper was told
+        record = json.loads((study / row["dir"] / TU.TRIAL_FILE).read_text())
+        assert math.isclose(record["values"][0], row["value_0"], rel_tol=1e-12)
+    best = yaml.safe_load((study / TU.BEST_FILE).read_text())["best"]
+    assert len(best) == 1 and math.isclose(best[0]["values"][0], trials["value_0"].min(), rel_tol=1e-12)
+    # the best trial's value is reproduced by evaluating its gains again
+    cfg = compose_config(["+tune=smc", *TINY, *(f"{k}={v!r}" for k, v in best[0]["params"].items())])
+    assert TU.OBJECTIVE_METRIC == "deviation_mae_ss" and trials[TU.OBJECTIVE_METRIC].notna().all()
+    assert math.isclose(TU.evaluate_gains(cfg).values[0], best[0]["values"][0], rel_tol=1e-12)
+    # the same study through the basic launcher: the same trials (the batch, not the launcher, sets the sampling)
+    basic = _trials(_study(tmp_path, "basic", "+tune=smc", "launcher=basic"))
+    params = [c for c in trials.columns if c.startswith("controller.")]
+    pd.testing.assert_frame_equal(trials[params + ["value_0"]], basic[params + ["value_0"]], rtol=1e-12)
+    # the report: held-out runs at paper and tuned gains, the comparison, the figures
+    proc = run_ddmr(["report", str(study)], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = (study / "report" / "report.md").read_text()
+    for section in ("## Studies", "## Paper gains vs tuned gains", "## Held-out evaluation", "## Figures"):
+        assert section in report
+    gains = pd.read_csv(study / "report" / "tables" / "gains.csv")
+    for _, row in gains.iterrows():
+        assert math.isclose(row["tuned"], best[0]["params"][row["key"]], rel_tol=1e-12)
+    held = pd.read_csv(study / "report" / "tables" / "heldout.csv")
+    assert set(held["gains"]) == {"paper", "tuned"} and set(held["runs"]) == {6}
+    summary = json.loads((study / "heldout" / "tuned" / "smc-paper_1" / "summary.json").read_text())
+    assert summary["seeds"] == [1000, 1005]
+    assert summary["parameters"]["lambda"] == pytest.approx(best[0]["params"]["controller.lam"], rel=1e-12)
+    for figure in ("history.png", "pareto.png"):
+        assert (study / "report" / "figures" / figure).stat().st_size > 1000
+    assert (study / "report" / "heldout_tuned" / "report.md").is_file()
+
+
+@pytest.mark.slow
+def test_a_killed_study_resumes_and_the_trial_count_continues(tmp_path):
+    import optuna
+
+    study = _study(tmp_path, "pid", "+tune=pid", budget=2)
+    info = json.loads((study / TU.STUDY_FILE).read_text())
+    # what a kill leaves: a trial asked of the sampler and never told its value (RUNNING)
+    stored = optuna.load_study(study_name=info["study_name"], storage=TU.storage_url(study))
+    stored.ask()
+    command = ["run", "-m", "+tune=pid", *TINY, "tuning.n_trials=4", f"hydra.sweep.dir={study}"]
+    proc = run_ddmr(command, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "resuming study pid-deviation: 2/4 trials done (1 left running by a killed session marked failed)" \
+        in proc.stderr + proc.stdout
+    trials = _trials(study)
+    assert list(trials["number"]) == [0, 1, 2, 3, 4]
+    assert list(trials["state"]) == ["COMPLETE", "COMPLETE", "FAIL", "COMPLETE", "COMPLETE"]
+    assert list(trials["killed"]) == [False, False, True, False, False]
+    sessions = json.loads((study / TU.STUDY_FILE).read_text())["sessions"]
+    assert [s["n_trials"] for s in sessions] == [2, 2] and [s["sampler_seed"] for s in sessions] == [0, 2]
+    # the same command once the budget is spent runs nothing and succeeds
+    again = run_ddmr(command, cwd=tmp_path)
+    assert again.returncode == 0 and len(_trials(study)) == 5
+    # another config into the same study dir is refused before anything runs
+    other = run_ddmr([*command, "run.n_runs=3"], cwd=tmp_path)
+    assert other.returncode == 2 and "holds a study of another config" in other.stderr
+    assert len(_trials(study)) == 5
+
+
+@pytest.mark.slow
+def test_the_pareto_mode_returns_a_front_of_non_dominated_trials(tmp_path):
+    study = _study(tmp_path, "pareto", "+tune=smc_ndo", "objective=pareto")
+    best = yaml.safe_load((study / TU.BEST_FILE).read_text())["best"]
+    values = [tuple(b["values"]) for b in best]
+    assert values and all(len(v) == 2 for v in values)
+    for a in values:
+        assert not any(b[0] <= a[0] and b[1] <= a[1] and b != a for b in values)
+    trials = _trials(study)
+    assert {"value_0", "value_1"} <= set(trials.columns) and (trials["state"] == "COMPLETE").all()
