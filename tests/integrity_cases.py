@@ -34,7 +34,7 @@ CASES = (
     Case("huge network", ("controller.nn.n_neurons=100000000",), 2, "controller's state takes"),
     Case("explicit budget", ("run.max_memory_gb=0.05",), 2, "over the budget of 0.05 GB (run.max_memory_gb)"),
     Case("budget zero", ("run.max_memory_gb=0",), 2, "run.max_memory_gb=0.0: must be > 0"),
-    Case("sweep at once", ("-m", "run.n_runs=400000", "run.base_seed=0,1", "run.max_memory_gb=20", "cluster.cpus=2"),
+    Case("sweep at once", ("-m", "run.n_runs=400000", "run.base_seed=0,1", "run.max_memory_gb=12", "cluster.cpus=2"),
          2, "2 jobs at once x 400000 runs"),
     Case("all series over budget", ("run.keep_series=all", "run.n_runs=2000", "run.max_memory_gb=2"), 2,
          "keep fewer series"),

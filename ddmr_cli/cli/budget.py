@@ -1,17 +1,17 @@
 """The memory a job will need, estimated before it starts, against ``run.max_memory_gb``.
 
-A job holds, besides a fixed base (interpreter, compiled kernels, the noise buffer of
-:data:`ddmr_cli.engine.simulation.CHUNK_BUDGET`):
+A job holds, besides a fixed base (interpreter, numpy/numba, the compiled kernels, the noise buffer):
 
-- per step: the reference and phase arrays (built from a list of tuples: about 400 bytes a step at its peak);
+- per step: the reference and phase arrays (built from a list of tuples) and the across-seed bands;
 - per kept series and step: the 31 channels of :data:`ddmr_cli.engine.results.SERIES_CHANNELS` (8 bytes each),
-  copied once into the result and once more while compressed and plotted (about 800 bytes);
-- per run: the run and metric records, the per-seed table rows and CSV text (about 32 KB measured), and twice
-  the controller's state record (state and parameters; an RBF network of n neurons holds 3 n numbers).
+  copied into the result and again while compressed into ``series.npz`` and plotted;
+- per run: the run and metric records and their per-segment metrics, and twice the controller's state record
+  (state and parameters; an RBF network of n neurons holds 3 n numbers per run).
 
-Measured with ``tracemalloc`` and the peak RSS on this machine (docs in the notes of issue 12): 20,000 runs of
-SMC-NDO-NNO over 0.2 s, 490 MB (25 KB per run); one run over 200 s (200,000 steps), 80 MB (400 B per step). The
-budget refuses a job whose estimate exceeds it, with one line naming what to change.
+The coefficients are peak RSS measured on the development machine above a warmed-up process (180 MB), with 15-25 %
+to spare: 20,000 runs of SMC-NDO-NNO over 0.2 s, +317 MB (16 KB per run); one run over 200 s (200,000 steps),
++40 MB (200 B per step); one kept series over 30 s (15,000 steps), +19 MB (about 1.1 KB per kept step).
+The budget refuses a job whose estimate exceeds it, with one line naming what to change.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ import numpy as np
 from ddmr_cli.errors import ConfigError
 
 BASE_BYTES = 200 * 2**20
-BYTES_PER_STEP = 400
-BYTES_PER_KEPT_STEP = 800
-BYTES_PER_RUN = 32 * 2**10
+BYTES_PER_STEP = 300
+BYTES_PER_KEPT_STEP = 1100
+BYTES_PER_RUN = 20 * 2**10
 #: share of the machine's available memory a job (or the jobs of a sweep running at once) may use by default
 DEFAULT_SHARE = 0.8
 GB = 1e9
