@@ -9,6 +9,7 @@ and the rule, and exits with status 2, leaving nothing behind.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 from dataclasses import dataclass
@@ -349,7 +350,8 @@ def run_locked(launch: Launch) -> int:
                 print(f"ddmr: sweep of {len(launch.plan)} jobs validated -> {launch.out_dir}", file=sys.stderr)
                 os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
                 reaper = _start_reaper()
-            code = _hydra(list(launch.argv))
+            with _ctrl_c_to_this_process_only():
+                code = _hydra(list(launch.argv))
             return code or finish(launch)
     except jobdir.FaultError as exc:
         print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
@@ -361,6 +363,32 @@ def run_locked(launch: Launch) -> int:
     finally:
         if reaper is not None:
             reaper.stdin.close()  # the reaper ends what is left of the workers (nothing, after a normal end)
+
+
+@contextlib.contextmanager
+def _ctrl_c_to_this_process_only():
+    """Ctrl-C reaches ``ddmr run`` but not the processes it starts (loky/submitit workers), which would print
+    their own KeyboardInterrupt tracebacks, even while importing: SIGINT is blocked in this thread, so every thread
+    and process started from here on inherits the block, and a thread started before the block stays open to it
+    (the kernel hands it the terminal's SIGINT; Python raises KeyboardInterrupt in the main thread as usual).
+    ``ddmr run`` then stops the workers itself."""
+    import signal
+    import threading
+
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    # the standard library's resource tracker unblocks SIGINT after it starts (SIG_UNBLOCK, not the old mask):
+    # started now, before the block, joblib finds it running and leaves the mask alone
+    resource_tracker.ensure_running()
+    threading.Thread(target=threading.Event().wait, name="ddmr-sigint", daemon=True).start()
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _start_reaper():
