@@ -111,16 +111,19 @@ def test_launchers_and_batch_sizes_give_bit_identical_numbers(smoke_sweep_dir, t
 
 
 def test_a_failing_job_is_recorded_and_does_not_stop_the_sweep(tmp_path):
+    import errno
+
+    from faults import fault_env
+
     sweep_dir = tmp_path / "sweep"
-    # make one job's metrics.csv unwritable (a directory in its place): that job fails at its first write
-    blocked = sweep_dir / "controller=smc,scenario=paper_1" / "metrics.csv"
-    blocked.mkdir(parents=True)
+    # one job's output files cannot be written (a full disk, injected): that job fails at its first write
+    env = fault_env(tmp_path / "site", errno.ENOSPC, "/.controller=smc,scenario=paper_1.")
     proc = run_ddmr(["run", "-m", "+experiment=smoke", "controller=pid,smc", "scenario=paper_1",
-                     f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path)
+                     f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path, env=env)
     assert proc.returncode == 1
     jobs = pd.read_csv(sweep_dir / "sweep_jobs.csv").set_index("job")
     assert jobs.loc["controller=smc,scenario=paper_1", "status"] == "failed"
-    assert "IsADirectoryError" in jobs.loc["controller=smc,scenario=paper_1", "error"]
+    assert "No space left on device" in jobs.loc["controller=smc,scenario=paper_1", "error"]
     assert jobs.loc["controller=pid,scenario=paper_1", "status"] == "complete"
     assert set(pd.read_csv(sweep_dir / "sweep_metrics.csv").controller) == {"pid"}
     assert "1 failed" in proc.stdout

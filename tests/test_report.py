@@ -355,6 +355,16 @@ def test_errors(tmp_path):
 SS_METRICS = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae")
 
 
+def _record_digests(job: Path) -> None:
+    """Re-record the digests of a job's files in its summary, as the engine that wrote the changed files would
+    (a file changed behind the summary's back is otherwise not read: issue 12)."""
+    from ddmr_cli.cli.jobdir import digest
+
+    summary = json.loads((job / "summary.json").read_text())
+    summary["digests"] = {name: digest(job / name) for name in summary["digests"] if (job / name).is_file()}
+    (job / "summary.json").write_text(json.dumps(summary))
+
+
 def _add_steady_state(sweep: Path, factor: dict[str, float]) -> None:
     """Constructed ``<metric>_ss`` columns: the whole-run value times a per-controller factor."""
     import pandas as pd
@@ -367,6 +377,7 @@ def _add_steady_state(sweep: Path, factor: dict[str, float]) -> None:
         for m in SS_METRICS:
             frame[m + "_ss"] = frame[m] * factor.get(controller, 1.0)
         frame.to_csv(job / "metrics.csv", index=False)
+        _record_digests(job)  # as an engine writing these columns records them
 
 
 def test_steady_state_columns_are_used(mini_sweep, tmp_path):
@@ -405,6 +416,9 @@ def test_without_steady_state_columns_whole_run_is_used(mini_sweep, tmp_path):
     for metrics in sweep.glob("*/metrics.csv"):
         frame = pd.read_csv(metrics)
         frame[[c for c in frame.columns if not c.endswith("_ss")]].to_csv(metrics, index=False)
+        summary = json.loads((metrics.parent / "summary.json").read_text())
+        summary.pop("digests")  # such jobs also predate the file digests of summary.json
+        (metrics.parent / "summary.json").write_text(json.dumps(summary))
     out = build_report(sweep)
     v = _read(out / "tables" / "verdicts.csv")
     assert set(v.loc[v["claim"] == "ranking", "metric"]) == {"deviation_mae"}
@@ -422,6 +436,7 @@ def _write_bands(job: Path, seed_series: dict, spread: float = 1.0) -> None:
         arrays[f"{c}/p05"] = y - spread * np.abs(y)
         arrays[f"{c}/p95"] = y + spread * np.abs(y)
     np.savez(job / "bands.npz", **arrays)
+    _record_digests(job)
 
 
 def test_bands_are_drawn_when_present(mini_sweep, tmp_path):
@@ -464,6 +479,7 @@ def test_bands_fall_back_when_absent_or_malformed(mini_sweep, tmp_path):
     shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report"))
     job_dir = sweep / "controller=smc,scenario=paper_1"
     np.savez(job_dir / "bands.npz", x=np.zeros(3))  # no time axis
+    _record_digests(job_dir)
     (sweep / "controller=pid,scenario=paper_1" / "bands.npz").unlink()
     data = D.load(sweep)
     assert data.bands(data.job("paper_1", "smc")) is None

@@ -80,10 +80,13 @@ def test_exit_status_ignores_job_dirs_of_an_earlier_sweep(tmp_path):
     assert "1 complete, 0 failed, 0 missing" in proc.stdout and "earlier sweep" in proc.stdout
     jobs = pd.read_csv(sweep_dir / sweep.JOBS_CSV)
     assert list(jobs.job) == ["controller=pid,scenario=paper_1"] and list(jobs.status) == ["complete"]
-    # the same dir, a sweep whose planned job fails: exit 1 from the on-disk state
-    blocked = sweep_dir / "controller=smc,scenario=paper_1" / io.METRICS_CSV
-    blocked.mkdir(parents=True)
+    # the same dir, a sweep whose planned job fails (its files cannot be written): exit 1 from the on-disk state
+    import errno
+
+    from faults import fault_env
+
+    env = fault_env(tmp_path / "site", errno.ENOSPC, "/.controller=smc,scenario=paper_1.")
     proc = run_ddmr(["run", "-m", "+experiment=smoke", "controller=smc", "scenario=paper_1", "launcher=basic",
-                     "run.plots=false", f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path)
+                     "run.plots=false", f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path, env=env)
     assert proc.returncode == 1 and "0 complete, 1 failed, 0 missing" in proc.stdout
     assert OmegaConf.load(sweep_dir / "multirun.yaml").hydra.sweep.dir == str(sweep_dir)

@@ -2,9 +2,12 @@
 
 It writes into Hydra's output dir: ``config.yaml`` (resolved), ``metrics.csv`` (tidy, one row per seed),
 ``segments.csv`` (per seed and terrain zone / scenario phase), ``series.npz`` (kept time series),
-``plots/*.png`` and, last, ``summary.json`` (status, config hash, across-seed statistics).
-A job whose directory already holds a complete summary with the same config hash is skipped (resume).
-In a sweep a failing job records its failure and returns, so the other jobs and the aggregation go on.
+``plots/*.png`` and, last, ``summary.json`` (status, config hash, across-seed statistics, size and SHA-256 of
+every file). The files are written into a temporary sibling dir and moved in before the summary
+(:mod:`ddmr_cli.cli.jobdir`). A job whose directory already holds a complete summary with the same config hash
+and every recorded file intact is skipped (resume); otherwise its old summary goes first, then its old files.
+In a sweep a failing job records its failure and returns, so the other jobs and the aggregation go on; a
+single run prints one line (``ddmr: error: <path>: <reason>`` for a file-system fault, exit 1).
 """
 
 from __future__ import annotations
@@ -18,9 +21,9 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from ddmr_cli.cli import io
+from ddmr_cli.cli import io, jobdir
 from ddmr_cli.errors import DDMRError
-from ddmr_cli.cli.config import build_simulation, config_hash, seeds_of, validate_config
+from ddmr_cli.cli.config import build_simulation, config_hash, kept_seeds, seeds_of, validate_config
 from ddmr_cli.cli.config.build import result_config
 
 log = logging.getLogger("ddmr")
@@ -60,30 +63,72 @@ def _in_sweep() -> bool:
 def run_job(cfg: DictConfig) -> dict:
     """Run one job and write its outputs; returns its summary."""
     out, overrides = _job_info()
+    if _in_sweep():
+        _exit_with_parent()
     digest = config_hash(cfg)
     previous = io.read_summary(out)
     if previous and previous.get("status") == "complete" and previous.get("config_hash") == digest:
-        log.info("skipped %s: complete results with the same config hash %s", out, digest)
-        return previous
+        problem = jobdir.verify(out, previous)
+        if problem is None:
+            log.info("skipped %s: complete results with the same config hash %s, every file verified", out, digest)
+            return previous
+        log.info("rerunning %s: %s", out, problem)
     started = time.perf_counter()
     base = {"overrides": overrides, "config_hash": digest, "controller": None, "scenario": None}
     try:
+        jobdir.begin(out)
         sim = validate_config(cfg)
         base["controller"], base["scenario"] = _names(cfg)
         summary = execute(cfg, out, overrides, digest, sim)
     except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
         error = f"{type(exc).__name__}: {exc}"
+        fault = jobdir.fault(exc, out) if isinstance(exc, OSError) else None
         log.error("job failed: %s", error)
-        io.write_json(out / io.SUMMARY, {**base, "status": "failed", "error": error,
-                                         "traceback": traceback.format_exc(),
-                                         "wall_time": time.perf_counter() - started})
+        failed = {**base, "status": "failed", "error": error, "traceback": traceback.format_exc(),
+                  "wall_time": time.perf_counter() - started}
+        if fault is not None:
+            failed["fault"] = {"path": fault.path, "reason": fault.reason}
+        try:
+            io.write_json(out / io.SUMMARY, failed)
+        except OSError:  # the fault itself (disk full, read-only): nothing more can be recorded
+            pass
         if not _in_sweep():
+            if fault is not None:  # a file-system fault: one line naming the path, exit 1
+                print(f"ddmr: error: {fault.path}: {fault.reason}", file=sys.stderr)
+                raise SystemExit(1) from None
             if isinstance(exc, (DDMRError, ValueError)):  # a bad value: one line, exit 2, never a traceback
                 print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
                 raise SystemExit(2) from None
             raise
-        return {**base, "status": "failed", "error": error}
+        return {key: failed[key] for key in failed if key != "traceback"}
     return summary
+
+
+def _exit_with_parent() -> None:
+    """In a worker process of a local sweep (joblib/loky, submitit_local), a daemon thread that ends the
+    process when the ``ddmr run`` that launched it is gone (killed), so no worker outlives it.
+    ``ddmr run`` names itself in ``DDMR_PARENT`` (host:pid); jobs on other hosts (SLURM) are left alone."""
+    import os
+    import socket
+    import threading
+
+    host, _, pid = os.environ.get("DDMR_PARENT", "").rpartition(":")
+    if not pid.isdigit() or host != socket.gethostname() or int(pid) == os.getpid():
+        return
+    if any(t.name == "ddmr-parent-watch" for t in threading.enumerate()):
+        return
+
+    def watch() -> None:
+        while True:
+            try:
+                os.kill(int(pid), 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except PermissionError:
+                pass
+            time.sleep(0.5)
+
+    threading.Thread(target=watch, name="ddmr-parent-watch", daemon=True).start()
 
 
 def _names(cfg: DictConfig) -> tuple[str, str]:
@@ -94,35 +139,46 @@ def _names(cfg: DictConfig) -> tuple[str, str]:
 
 def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None,
             sim=None) -> dict:
-    """Simulate the config's seeds and write every output file into ``out``; returns the summary."""
-
-    from ddmr_cli.engine.simulation import simulate
-
+    """Simulate the config's seeds and write every output file into ``out`` (staged, then moved in with the
+    summary last); returns the summary."""
     sim = sim if sim is not None else build_simulation(cfg)  # run_job passes the one it validated
     seeds = seeds_of(cfg)
+    with jobdir.Stage(out) as stage:
+        summary = _simulate_and_write(cfg, sim, seeds, stage.path, overrides, digest)
+        summary = stage.commit(summary)
+    stats = summary["statistics"]
+    label = f"{summary['controller']}/{summary['scenario']}"
+    log.info("%s: %d runs (%d diverged) in %.2f s", label, stats["runs"], stats["diverged"], summary["wall_time"])
+    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} +- {stats[m + '_sd']:.2g} {io.unit_of(m)}"
+                               for m in io.HEADLINE[:4]))
+    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} {io.unit_of(m)}" for m in io.HEADLINE[4:]))
+    log.info("results: %s", out)
+    return summary
+
+
+def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overrides, digest) -> dict:
+    """Simulate and write every output file into ``out`` (the staging dir); returns the summary to commit."""
+    from ddmr_cli.engine.simulation import simulate
+
     # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
     threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
-    result = simulate(sim, seeds, keep_series=list(cfg.run.keep_series), progress=progress, threads=threads,
+    result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
                       bands=bool(cfg.run.bands))
     io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
-    files = [io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV]
     if result.bands:
         io.write_bands(out / io.BANDS, result.bands)
-        files.append(io.BANDS)
     if result.series:
         io.write_series(out / io.SERIES, result.series)
-        files.append(io.SERIES)
         if cfg.run.plots:
             from ddmr_cli.report.run_plots import run_plots
 
             seed = next(iter(result.series))
-            for path in run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR):
-                files.append(str(path.relative_to(out)))
-    summary = {
+            run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR)
+    return {
         "status": "complete",
         "controller": result.controller,
         "scenario": result.scenario,
@@ -136,17 +192,8 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
         "dt": result.dt,
         "wall_time": result.wall_time,
         "engine": result.engine,
-        "files": files,
         "python": platform.python_version(),
     }
-    io.write_json(out / io.SUMMARY, summary)
-    stats = summary["statistics"]
-    log.info("%s: %d runs (%d diverged) in %.2f s", label, stats["runs"], stats["diverged"], result.wall_time)
-    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} +- {stats[m + '_sd']:.2g} {io.unit_of(m)}"
-                               for m in io.HEADLINE[:4]))
-    log.info("  " + " | ".join(f"{m} {stats[m + '_mean']:.4g} {io.unit_of(m)}" for m in io.HEADLINE[4:]))
-    log.info("results: %s", out)
-    return summary
 
 
 __all__ = ["run_job", "execute"]

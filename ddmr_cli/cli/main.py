@@ -9,10 +9,12 @@ and the rule, and exits with status 2, leaving nothing behind.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Sequence
 
 EXIT_USAGE = 2
@@ -147,27 +149,39 @@ class Launch:
     study: bool = False
 
 
-def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: str = "config") -> Launch:
+def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: str = "config",
+            config_dir: str | None = None, search_dir: str | None = None) -> Launch:
     """Compose and validate every job of the run or sweep, resolve its output dir and plan its jobs.
 
-    Raises :class:`UsageError` (one line) on the first bad value, before anything is written. The output dir
-    (``hydra.run.dir`` / ``hydra.sweep.dir``, usually ``outputs/<experiment>/<time>``) is resolved here and
-    passed to Hydra as an override, so the CLI reads exactly this run's results afterwards."""
+    Raises :class:`UsageError` (one line) on the first bad value, before anything is written: a value, a key a
+    schema does not have (``+run.nruns=5``), a class of the wrong kind, a derived number that is not finite, a
+    memory estimate over ``run.max_memory_gb``, an empty sweep, or two jobs that would share one dir. The output
+    dir (``hydra.run.dir`` / ``hydra.sweep.dir``, usually ``outputs/<experiment>/<time>``) is resolved here and
+    passed to Hydra as an override, so the CLI reads exactly this run's results afterwards. ``config_dir`` and
+    ``search_dir`` are the absolute ``--config-path`` and ``--config-dir`` of the command line."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ddmr_cli.cli import sweep
-    from ddmr_cli.cli.config import compose_config, validate_config
+    from ddmr_cli.cli import budget, sweep
+    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.cli.config.validate import check_additions, job_estimate, message, validate_config
     from ddmr_cli.errors import ConfigError
 
+    extra = [f"hydra.searchpath=[{_override_value('file://' + search_dir)}]"] if search_dir else []
+
+    def compose(job_overrides: list[str], hydra_node: bool = False):
+        return compose_config([*job_overrides, *extra], config_name, return_hydra_config=hydra_node,
+                              config_dir=config_dir)
+
+    current = overrides
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
         fixed = [o.input_line for o in parsed if not o.is_sweep_override()]
         if not multirun and len(fixed) != len(parsed):
             sweep_ov = next(o.input_line for o in parsed if o.is_sweep_override())
             raise UsageError(f"{sweep_ov}: a sweep needs --multirun (-m)")
-        base = compose_config(fixed, config_name, return_hydra_config=True)
+        base = compose(fixed, hydra_node=True)
         margin = base.report.margin
         try:
             from ddmr_cli.report.stats import Margin
@@ -179,22 +193,72 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
 
         study = multirun and tuning.is_study(base)
         session = tuning.prepare_study(base, overrides) if study else []  # checks; the rest of the budget
-        plan = [] if study else (sweep.plan_jobs(overrides, base.hydra) if multirun else
+        plan = [] if study else (sweep.plan_jobs(overrides, base) if multirun else
                                  [{"dir": "", "overrides": overrides}])
+        if multirun and not study and not plan:
+            empty = next((o.input_line for o in parsed if o.is_sweep_override() and not list(o.sweep_string_iterator())),
+                         "hydra.sweeper.params")
+            raise UsageError(f"{empty}: the sweep has no jobs (an empty range or list); nothing to run")
+        _refuse_shared_dirs(plan, [o for o in overrides if o.startswith("hydra.sweep.subdir=")])
+        largest = None
         for job in plan:
-            cfg = compose_config(job["overrides"], config_name) if multirun else base
-            validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here, not in a job
+            current = job["overrides"]
+            cfg = compose(current) if multirun else base
+            check_additions(cfg, current)
+            sim = validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here
+            est = job_estimate(cfg, sim)
+            largest = est if largest is None or est.total > largest.total else largest
+        if multirun and largest is not None:
+            at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
+                                     len(plan))
+            budget.check(largest, base.run.get("max_memory_gb"), at_once, (base.get("cluster") or {}).get("mem_gb"))
         dir_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
         out_dir = Path(str(base.hydra.sweep.dir if multirun else base.hydra.run.dir))
     except ConfigError as exc:
-        raise UsageError(str(exc)) from None
+        raise UsageError(message(exc, current)) from None
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise UsageError(_missing_plugin(exc, overrides) or _explain(exc, overrides)) from None
     pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}", *session]
-    if multirun and not study:
-        print(f"ddmr: sweep of {len(plan)} jobs validated -> {out_dir}", file=sys.stderr)
     return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin,
                   study)
+
+
+def _refuse_shared_dirs(plan: list[dict], subdir: list[str]) -> None:
+    """Two jobs of one plan that would write into one dir: refused, naming the ``hydra.sweep.subdir`` override
+    or the keys that tell them apart (left out of the dir names)."""
+    from ddmr_cli.cli import sweep
+
+    clash = sweep.shared_dir(plan)
+    if clash is None:
+        return
+    a, b = clash
+    differ = sorted({ov.lstrip("+~").partition("=")[0] for ov in set(a["overrides"]) ^ set(b["overrides"])})
+    raise UsageError(f"{subdir[-1] if subdir else ', '.join(differ) or 'hydra.sweep.subdir'}: jobs {' '.join(a['overrides'])!r} and "
+                     f"{' '.join(b['overrides'])!r} would write into one job dir {a['dir']!r}; sweep a key that names "
+                     f"the dir (not one of hydra.job.config.override_dirname.exclude_keys) or give hydra.sweep.subdir "
+                     f"a per-job value")
+
+
+#: flags naming config dirs: the primary config's (``--config-path``) and an extra one (``--config-dir``)
+_DIR_FLAGS = MappingProxyType({"--config-path": "path", "-cp": "path", "--config-dir": "dir", "-cd": "dir"})
+
+
+def _config_dirs(argv: list[str]) -> tuple[list[str], str | None, str | None]:
+    """``argv`` with the ``--config-path`` / ``--config-dir`` values made absolute against the current dir (Hydra
+    would read a relative --config-path against its own module's dir), and those two dirs (or None)."""
+    out, dirs = [], {"path": None, "dir": None}
+    it = iter(argv)
+    for arg in it:
+        name, sep, value = arg.partition("=")
+        if name not in _DIR_FLAGS:
+            out.append(arg)
+            continue
+        value = value if sep else next(it, "")
+        if not value.startswith("pkg://"):
+            value = str(Path(value.removeprefix("file://")).expanduser().resolve())
+            dirs[_DIR_FLAGS[name]] = value
+        out.append(f"{name}={value}")
+    return out, dirs["path"], dirs["dir"]
 
 
 def _normalise(argv: list[str]) -> list[str]:
@@ -209,7 +273,8 @@ def _normalise(argv: list[str]) -> list[str]:
 
 
 def finish(launch: Launch) -> int:
-    """The exit status from the output dir as it is on disk, and the report when asked for."""
+    """The exit status from the output dir as it is on disk, and the report when asked for. A sweep whose tables
+    could not be written, or with a failed job, exits 1; a job's file-system fault is repeated as one line."""
     from ddmr_cli.cli import io, sweep
 
     if launch.study:
@@ -218,7 +283,11 @@ def finish(launch: Launch) -> int:
         status = finish_study(launch.out_dir)
     elif launch.multirun:
         state = sweep.read_state(launch.out_dir, plan=list(launch.plan))
-        status = 0 if state.ok else EXIT_FAILED
+        status = 0 if state.ok and (launch.out_dir / sweep.JOBS_CSV).is_file() else EXIT_FAILED
+        faults = [s["fault"] for _, s in state.failed if isinstance(s.get("fault"), dict)]
+        if faults:
+            more = f" ({len(faults)} jobs failed on file-system faults)" if len(faults) > 1 else ""
+            print(f"ddmr: error: {faults[0]['path']}: {faults[0]['reason']}{more}", file=sys.stderr)
     else:
         summary = io.read_summary(launch.out_dir)
         status = 0 if summary and summary.get("status") == "complete" else EXIT_FAILED
@@ -245,6 +314,10 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
     return 0
 
 
+INTERRUPTED = 130
+INTERRUPTED_MESSAGE = "ddmr: interrupted; run the same command again to resume"
+
+
 def cmd_run(argv: list[str]) -> int:
     argv = _normalise(argv)
     overrides, flags = _split_args(argv)
@@ -252,25 +325,106 @@ def cmd_run(argv: list[str]) -> int:
     if {"--help", "-h"} & flags.keys():
         return run_help(overrides, config_name)
     multirun = bool(flags.get("-m") or flags.get("--multirun"))
-    launch = None
-    if not (_INFO_FLAGS & flags.keys()) and not ({"--config-path", "-cp", "--config-dir", "-cd"} & flags.keys()):
-        try:
-            launch = prepare(argv, overrides, multirun, config_name)
-        except UsageError as exc:
-            return _fail(str(exc))
-        argv = list(launch.argv)
+    if _INFO_FLAGS & flags.keys():  # no job runs: Hydra prints what was asked for
+        return _hydra(argv, completing=bool({"-sc", "--shell-completion"} & flags.keys()))
+    argv, config_dir, search_dir = _config_dirs(argv)
+    try:
+        launch = prepare(argv, overrides, multirun, config_name, config_dir, search_dir)
+    except UsageError as exc:
+        return _fail(str(exc))
+    return run_locked(launch)
+
+
+def run_locked(launch: Launch) -> int:
+    """Run Hydra on a prepared launch holding the output dir's lock; file-system faults and Ctrl-C end it with
+    one line (exit 1 and 130)."""
+    import os
+    import socket
+
+    from ddmr_cli.cli import jobdir
+
+    reaper = None
+    try:
+        with jobdir.DirLock(launch.out_dir):
+            if launch.multirun and not launch.study:
+                print(f"ddmr: sweep of {len(launch.plan)} jobs validated -> {launch.out_dir}", file=sys.stderr)
+                os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
+                reaper = _start_reaper()
+            with _ctrl_c_to_this_process_only():
+                code = _hydra(list(launch.argv))
+            return code or finish(launch)
+    except jobdir.FaultError as exc:
+        print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
+        return EXIT_FAILED
+    except KeyboardInterrupt:
+        _stop_workers()
+        print(INTERRUPTED_MESSAGE, file=sys.stderr)
+        return INTERRUPTED
+    finally:
+        if reaper is not None:
+            reaper.stdin.close()  # the reaper ends what is left of the workers (nothing, after a normal end)
+
+
+@contextlib.contextmanager
+def _ctrl_c_to_this_process_only():
+    """Ctrl-C reaches ``ddmr run`` but not the processes it starts (loky/submitit workers), which would print
+    their own KeyboardInterrupt tracebacks, even while importing: SIGINT is blocked in this thread, so every thread
+    and process started from here on inherits the block, and a thread started before the block stays open to it
+    (the kernel hands it the terminal's SIGINT; Python raises KeyboardInterrupt in the main thread as usual).
+    ``ddmr run`` then stops the workers itself."""
+    import signal
+    import threading
+
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    # the standard library's resource tracker unblocks SIGINT after it starts (SIG_UNBLOCK, not the old mask):
+    # started now, before the block, joblib finds it running and leaves the mask alone
+    resource_tracker.ensure_running()
+    threading.Thread(target=threading.Event().wait, name="ddmr-sigint", daemon=True).start()
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _start_reaper():
+    """Start :mod:`ddmr_cli.cli.reaper` (a script, in its own session) to end this run's workers when this
+    process ends or is killed; None when it cannot be started."""
+    import os
+    import socket
+    import subprocess
+
+    try:
+        return subprocess.Popen([sys.executable, str(Path(__file__).with_name("reaper.py")), str(os.getpid()),
+                                 socket.gethostname()], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True)
+    except OSError:
+        return None
+
+
+def _hydra(argv: list[str], completing: bool = False) -> int:
+    """Hydra's exit status for ``ddmr run ARGV`` (0 when it returns)."""
     from ddmr_cli.cli.hydra_main import main as hydra_main
 
     # shell completion registers and queries the program `ddmr` (see `main`); everything else is `ddmr run`
-    completing = bool({"-sc", "--shell-completion"} & flags.keys())
     sys.argv = ["ddmr" if completing else "ddmr run", *argv]
     try:
         hydra_main()
     except SystemExit as exc:  # Hydra exits 1 after printing a job's error
-        code = int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_FAILED
-        if code or launch is None:
-            return code
-    return 0 if launch is None else finish(launch)
+        return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_FAILED
+    return 0
+
+
+def _stop_workers() -> None:
+    """Kill the joblib launcher's worker processes (after Ctrl-C they may still be running jobs)."""
+    if "joblib" in sys.modules:
+        from joblib.externals.loky import get_reusable_executor
+
+        get_reusable_executor().shutdown(wait=False, kill_workers=True)
 
 
 # --- self-documenting config: ddmr run --help, ddmr explain KEY ---------------------------------------------
@@ -479,6 +633,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.getLogger("matplotlib").setLevel(logging.WARNING)
     try:
         return commands[command](rest)
+    except KeyboardInterrupt:
+        print(INTERRUPTED_MESSAGE if command == "run" else "ddmr: interrupted", file=sys.stderr)
+        return INTERRUPTED
     except BrokenPipeError:  # `ddmr run --help | head`: the reader left; say nothing more
         import os
 

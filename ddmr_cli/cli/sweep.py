@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
@@ -55,7 +56,8 @@ def expand_jobs(overrides: Iterable[str], sweeper_params: dict[str, Any]) -> lis
 
 
 def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_sep: str = "=") -> str:
-    """The sub-directory name Hydra gives a job (``hydra.job.override_dirname``)."""
+    """Hydra's ``hydra.job.override_dirname`` of a job's overrides (made safe by the ``ddmr.jobdir`` resolver of
+    the default ``hydra.sweep.subdir``, :func:`ddmr_cli.cli.jobdir.safe_name`)."""
     from hydra._internal.config_loader_impl import get_overrides_dirname
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
@@ -63,12 +65,43 @@ def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_
     return get_overrides_dirname(parsed, exclude_keys=list(exclude_keys), item_sep=item_sep, kv_sep=kv_sep)
 
 
-def plan_jobs(overrides: Iterable[str], hydra_cfg: DictConfig) -> list[dict]:
+def _subdir(root: DictConfig, dirname: str, num: int) -> str:
+    """A job's ``hydra.sweep.subdir`` as Hydra will resolve it in the job (override_dirname and num set)."""
+    from omegaconf import OmegaConf
+
+    from ddmr_cli.cli.jobdir import safe_name
+
+    container = OmegaConf.to_container(root, resolve=False)
+    job = container["hydra"].setdefault("job", {})
+    job.update({"override_dirname": dirname, "num": num, "id": str(num)})
+    try:
+        return str(OmegaConf.select(OmegaConf.create(container), "hydra.sweep.subdir", throw_on_missing=True))
+    except Exception:  # noqa: BLE001  (an interpolation only Hydra's job runtime can resolve)
+        return safe_name(dirname)
+
+
+def plan_jobs(overrides: Iterable[str], cfg: DictConfig) -> list[dict]:
     """The planned jobs of a sweep, ``[{"dir": ..., "overrides": [...]}, ...]``, from its overrides and the
-    composed ``hydra`` node (sweeper params, override_dirname settings)."""
+    composed config (its ``hydra`` node: sweeper params, override_dirname settings, ``hydra.sweep.subdir``).
+    ``cfg`` may also be the ``hydra`` node alone."""
+    from omegaconf import OmegaConf
+
+    root = cfg if "hydra" in cfg else OmegaConf.create({"hydra": OmegaConf.to_container(cfg, resolve=False)})
+    hydra_cfg = root.hydra
     od = hydra_cfg.job.config.override_dirname
     jobs = expand_jobs(overrides, dict(hydra_cfg.sweeper.get("params") or {}))
-    return [{"dir": job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), "overrides": job} for job in jobs]
+    return [{"dir": _subdir(root, job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), num), "overrides": job}
+            for num, job in enumerate(jobs)]
+
+
+def shared_dir(plan: list[dict]) -> tuple[dict, dict] | None:
+    """The first two planned jobs that would write into one dir, or None."""
+    seen: dict[str, dict] = {}
+    for job in plan:
+        if job["dir"] in seen:
+            return seen[job["dir"]], job
+        seen[job["dir"]] = job
+    return None
 
 
 def read_plan(sweep_dir: Path) -> list[dict] | None:
@@ -84,7 +117,8 @@ def read_plan(sweep_dir: Path) -> list[dict] | None:
 @dataclass
 class SweepState:
     """What a sweep dir holds: complete, failed and missing jobs (``unplanned``: job dirs of an earlier sweep
-    into the same dir that this sweep's plan does not list)."""
+    into the same dir that this sweep's plan does not list, the foreign jobs, left alone). A job whose files
+    differ from the digests its summary records counts as failed (status ``corrupt``)."""
 
     sweep_dir: Path
     complete: list[tuple[Path, dict]] = field(default_factory=list)
@@ -125,14 +159,29 @@ def read_state(sweep_dir: Path, plan: list[dict] | None = None, every_dir: bool 
             if job_dir.name in planned or (job_dir / ".hydra").is_dir():
                 state.missing.append(planned.get(job_dir.name, {"dir": job_dir.name, "overrides": []}))
             continue
-        (state.complete if summary.get("status") == "complete" else state.failed).append((job_dir, summary))
+        if summary.get("status") == "complete":
+            problem = _changed(job_dir, summary)
+            if problem is None:
+                state.complete.append((job_dir, summary))
+                continue
+            summary = {**summary, "status": "corrupt", "error": f"files changed since the job finished: {problem}"}
+        state.failed.append((job_dir, summary))
     return state
 
 
+def _changed(job_dir: Path, summary: dict) -> str | None:
+    """Why a complete job's files are not the ones its summary records (None: they are, or the summary
+    predates digests). Dropped series and plots are allowed (:func:`ddmr_cli.cli.jobdir.verify`)."""
+    from ddmr_cli.cli.jobdir import verify
+
+    return verify(job_dir, summary, strict=False) if "digests" in summary else None
+
+
 def load_sweep(sweep_dir: Path) -> SweepState:
-    """Every job dir of a sweep dir (the former name of :func:`read_state` with ``every_dir=True``, which
-    :mod:`ddmr_cli.report.data` still imports). The public ``ddmr_cli.load_sweep`` is :func:`load_table`."""
-    return read_state(sweep_dir, every_dir=True)
+    """The jobs of a sweep dir as :mod:`ddmr_cli.report.data` reads them: the planned jobs of its
+    ``sweep_plan.json`` (foreign job dirs of an earlier sweep into the same dir left out), or every job dir
+    when it has no plan. The public ``ddmr_cli.load_sweep`` is :func:`load_table`."""
+    return read_state(sweep_dir)
 
 
 # --- swept keys ---------------------------------------------------------------------------------------------
@@ -297,10 +346,19 @@ def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
     state = read_state(sweep_dir)
     keys, values = swept_values(_job_overrides(state))
     jobs = jobs_table(state, keys, values)
-    io.write_csv(state.sweep_dir / JOBS_CSV, jobs)
-    if state.complete:
-        io.write_csv(state.sweep_dir / SWEEP_METRICS_CSV, _per_seed(state, keys, values, segments=False))
-        io.write_csv(state.sweep_dir / SWEEP_SEGMENTS_CSV, _per_seed(state, keys, values, segments=True))
+    tables = [state.sweep_dir / name for name in (JOBS_CSV, SWEEP_METRICS_CSV, SWEEP_SEGMENTS_CSV)]
+    for path in tables:  # no table of an earlier sweep stays beside this one's
+        path.unlink(missing_ok=True)
+    try:
+        if state.complete:
+            io.write_csv(tables[1], _per_seed(state, keys, values, segments=False))
+            io.write_csv(tables[2], _per_seed(state, keys, values, segments=True))
+        io.write_csv(tables[0], jobs)  # last: the CLI takes a sweep without sweep_jobs.csv as failed
+    except OSError as exc:
+        for path in tables:
+            path.unlink(missing_ok=True)
+        print(f"ddmr: error: {exc.filename or state.sweep_dir}: {exc.strerror or exc}", file=sys.stderr)
+        return state
     units = {}
     if cfg is not None:
         from ddmr_cli.cli.config import key_doc
@@ -315,8 +373,9 @@ def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
     if not jobs.empty:
         print("\n".join(summary_lines(jobs, keys, units)))
     if state.unplanned:
-        print(f"  ({len(state.unplanned)} job dirs of an earlier sweep into this dir are not in this sweep's plan "
-              f"and not in its tables)")
+        names = ", ".join(state.unplanned[:3]) + (" ..." if len(state.unplanned) > 3 else "")
+        print(f"  foreign: {len(state.unplanned)} job dirs of an earlier sweep into this dir ({names}) are not in "
+              f"this sweep's plan; left alone, not in its tables")
     print(f"  tables: {JOBS_CSV}, {SWEEP_METRICS_CSV}, {SWEEP_SEGMENTS_CSV}; report: ddmr report {state.sweep_dir}")
     return state
 
@@ -325,7 +384,7 @@ class SweepAggregator(Callback):
     """Hydra callback: writes the sweep plan at the start and the sweep tables at the end of a multirun."""
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        plan = plan_jobs(config.hydra.overrides.task, config.hydra)
+        plan = plan_jobs(config.hydra.overrides.task, config)
         io.write_json(Path(config.hydra.sweep.dir) / PLAN, {"jobs": plan})
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
@@ -335,8 +394,6 @@ class SweepAggregator(Callback):
 
 def _shutdown_joblib_workers() -> None:
     """Stop the joblib launcher's worker processes now rather than after loky's idle timeout."""
-    import sys
-
     if "joblib" in sys.modules:
         from joblib.externals.loky import get_reusable_executor
 

@@ -196,19 +196,22 @@ class ScenarioFigures:
         width = min(ZOOM_WIDTH, t[b - 1] - t[a]) or ZOOM_WIDTH
         return mid - width / 2, mid + width / 2
 
-    def _arrays(self, job: Job, channel: str) -> list[np.ndarray]:
-        """The arrays a trace of ``channel`` draws (seed, and band edges when present), for y-limits."""
-        out = [self._s(job)[channel]]
+    def _arrays(self, job: Job, channel: str) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The (time, values) arrays a trace of ``channel`` draws (seed, and band edges when present), for
+        y-limits; each job on its own time grid (a sweep over simulation.dt or duration has several)."""
+        t = self._s(job)["t"]
+        out = [(t, self._s(job)[channel])]
         band = self.bands.get(job.key)
         if band is not None and channel in band:
-            out += [band.p05[channel], band.p95[channel]]
+            out += [(t, band.p05[channel]), (t, band.p95[channel])]
         return out
 
-    def _robust_ylim(self, ax, arrays, t, t_min: float = 1.0, margin: float = 0.15, extra=()) -> bool:
+    def _robust_ylim(self, ax, arrays, t_min: float = 1.0, margin: float = 0.15, extra=()) -> bool:
         """Fit the y range to t >= t_min (and the values in ``extra``); True when something before t_min is
-        off-scale."""
-        later = t >= t_min
-        vals = np.concatenate([a[later] for a in arrays] + [np.asarray(extra, float)])
+        off-scale. ``arrays``: (time, values) pairs."""
+        later = [t >= t_min for t, _ in arrays]
+        arrays = [a for _, a in arrays]
+        vals = np.concatenate([a[m] for a, m in zip(arrays, later)] + [np.asarray(extra, float)])
         vals = vals[np.isfinite(vals)]
         if vals.size == 0:
             return False
@@ -216,7 +219,7 @@ class ScenarioFigures:
         pad = margin * (hi - lo or abs(hi) or 1.0)
         lo, hi = lo - pad, hi + pad
         ax.set_ylim(lo, hi)
-        early = np.concatenate([a[~later] for a in arrays])
+        early = np.concatenate([a[~m] for a, m in zip(arrays, later)])
         early = early[np.isfinite(early)]
         return bool(early.size and (early.min() < lo or early.max() > hi))
 
@@ -369,7 +372,7 @@ class ScenarioFigures:
             for job in self._ordered(self.jobs, key):
                 self._trace(ax, job, key)
             clipped |= self._robust_ylim(ax, [a for j in self.jobs for a in self._arrays(j, key)],
-                                         self._s(self.ref)["t"], t_min=POSE_T_MIN)
+                                         t_min=POSE_T_MIN)
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
         axes[0].set_title(self._title("Figs. 6/12: longitudinal, lateral and heading errors", bands=True))
@@ -497,8 +500,7 @@ class ScenarioFigures:
             row[0].set_ylabel("u_R [V]")
             for ax in row:
                 ax.grid(alpha=0.3)
-        clipped = self._robust_ylim(axes[0, 0], [a for j in self.jobs for a in self._arrays(j, "u_right")],
-                                    self._s(self.ref)["t"])
+        clipped = self._robust_ylim(axes[0, 0], [a for j in self.jobs for a in self._arrays(j, "u_right")])
         axes[0, 0].set_title(self._title("Figs. 8/13: right-wheel control voltage", bands=True))
         axes[0, 1].set_title(f"zoom: t = {t0:.2f} – {t1:.2f} s (highlighted)")
         axes[0, 1].set_xlim(t0, t1)
@@ -534,7 +536,6 @@ class ScenarioFigures:
         show_paper = self.scenario == "paper_1" and any(j.controller == "smc" for j in jobs)
         fig, axes = plt.subplots(len(jobs), 2, figsize=(12, 1.0 + 1.55 * len(jobs)), squeeze=False, sharex=True,
                                  sharey=True)
-        t_ref = self._s(self.ref)["t"]
         for i, (row, job) in enumerate(zip(axes, jobs)):
             for ax, wheel in zip(row, ("right", "left")):
                 self._decorate_time(ax, labels=i == 0)
@@ -548,7 +549,7 @@ class ScenarioFigures:
             self._row_label(row[0], job.label, self.style(job)["color"])
             row[0].set_ylabel("s [rad/s]")
         arrays = [a for j in jobs for w in ("right", "left") for a in self._arrays(j, f"s_{w}")]
-        clipped = self._robust_ylim(axes[0, 0], arrays, t_ref,
+        clipped = self._robust_ylim(axes[0, 0], arrays,
                                     extra=[sigma["right"], sigma["left"]] if show_paper else ())
         axes[0, 0].set_title(self._title("Fig. 9: sliding variable, right wheel", bands=True))
         axes[0, 1].set_title("left wheel")

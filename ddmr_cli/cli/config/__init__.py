@@ -9,7 +9,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
 from ddmr_cli.cli.config.build import build_simulation, config_hash, seeds_of
-from ddmr_cli.cli.config.validate import validate_config
+from ddmr_cli.cli.config.validate import kept_seeds, validate_config
 
 CONFIG_MODULE = "ddmr_cli.conf"
 MODEL_DOC = "docs/model.md"
@@ -17,10 +17,14 @@ MODEL_DOC = "docs/model.md"
 
 def _register_resolvers() -> None:
     """``${ddmr.eq:a,b}``: true when the two (interpolated) strings are equal; e.g. per-job plots for one job of
-    a sweep (conf/experiment/smoke.yaml); ``${ddmr.digest:text}`` (:func:`_digest`). Registered on import, in
-    every process that composes a config."""
+    a sweep (conf/experiment/smoke.yaml); ``${ddmr.digest:text}`` (:func:`_digest`); ``${ddmr.jobdir:name}``
+    (:func:`ddmr_cli.cli.jobdir.safe_name`). Registered on import, in every process that composes a config."""
+    from ddmr_cli.cli.jobdir import safe_name
+
     OmegaConf.register_new_resolver("ddmr.eq", lambda a, b: str(a) == str(b), replace=True)
     OmegaConf.register_new_resolver("ddmr.digest", _digest, replace=True)
+    # ``${ddmr.jobdir:${hydra.job.override_dirname}}``: a job's dir name, safe and bounded (conf/config.yaml)
+    OmegaConf.register_new_resolver("ddmr.jobdir", lambda name="": safe_name(str(name)), replace=True)
 
 
 def _digest(text) -> str:
@@ -34,14 +38,18 @@ def _digest(text) -> str:
 _register_resolvers()
 
 
-def compose_config(overrides: Sequence[str] = (), config_name: str = "config", return_hydra_config: bool = False):
-    """Compose the packaged config with Hydra's compose API (no output directory is made)."""
-    from hydra import compose, initialize_config_module
+def compose_config(overrides: Sequence[str] = (), config_name: str = "config", return_hydra_config: bool = False,
+                   config_dir: str | None = None):
+    """Compose the packaged config (or the primary config of ``config_dir``, as ``ddmr run --config-path``)
+    with Hydra's compose API (no output directory is made)."""
+    from hydra import compose, initialize_config_dir, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()
-    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+    init = (initialize_config_dir(config_dir=str(config_dir), version_base="1.3") if config_dir else
+            initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"))
+    with init:
         return compose(config_name=config_name, overrides=list(overrides), return_hydra_config=return_hydra_config)
 
 
@@ -62,7 +70,7 @@ def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     from ddmr_cli.engine.simulation import simulate
 
     sim = validate_config(cfg)
-    return simulate(sim, seeds_of(cfg), keep_series=list(cfg.run.keep_series), progress=progress)
+    return simulate(sim, seeds_of(cfg), keep_series=kept_seeds(cfg.run), progress=progress)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,4 +169,5 @@ def key_docs(cfg: DictConfig) -> list[KeyDoc]:
     return [key_doc(cfg, key) for key in iter_keys(cfg)]
 
 
-__all__ = ["KeyDoc", "key_doc", "key_docs", "iter_keys", "compose_config", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of"]
+__all__ = ["KeyDoc", "key_doc", "key_docs", "iter_keys", "compose_config", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of",
+           "kept_seeds"]

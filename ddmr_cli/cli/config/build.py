@@ -22,7 +22,8 @@ from ddmr_cli.model.terrain import Terrain, TerrainZone
 ALLOWED_TARGET_PREFIX = "ddmr_cli."
 
 #: Keys that do not change the numbers (left out of the config hash used to resume sweeps).
-NON_RESULT_KEYS = ("run.plots", "run.progress", "run.threads", "experiment_name", "cluster", "report")
+NON_RESULT_KEYS = ("run.plots", "run.progress", "run.threads", "run.max_memory_gb", "experiment_name", "cluster",
+                   "report", "tags")
 
 
 def check_targets(node: Any, path: str) -> None:

@@ -337,8 +337,12 @@ class RunConfig:
                         range="integer >= 1", model=7, paper="Table 4 (50 runs)")
     base_seed: int = param(unit="1", help="first seed: a job runs seeds base_seed .. base_seed + n_runs - 1",
                            range="integer >= 0", model=5)
-    keep_series: List[int] = param(unit="1", help="seeds whose full time series are saved (series.npz, figures)",
-                                   range="integers >= 0")
+    keep_series: Any = param(unit="1", help="runs whose full time series are saved (series.npz, figures): "
+                             "first:N (the job's first N seeds, any base_seed), all, none, or a list of seeds",
+                             range="first:N | all | none | [seeds among base_seed .. base_seed + n_runs - 1]")
+    max_memory_gb: Optional[float] = param(unit="GB", help="memory budget: a job (the jobs of a sweep running at "
+                                           "once) whose estimate exceeds it is refused before it starts",
+                                           range="null (80% of the available memory) or > 0")
     plots: bool = param(unit="", help="PNG plots of the first kept seed in each job dir",
                         range="true | false")
     progress: bool = param(unit="", help="progress lines on the terminal and in the log",
@@ -426,6 +430,8 @@ class DDMRConfig:
     experiment_name: str = param(unit="", help="first level of the output dir outputs/<experiment_name>/")
     cluster: Dict[str, Any] = param(unit="", help="launcher settings set by conf/launcher presets",
                                     entries=CLUSTER_KEYS, factory=dict)
+    tags: Dict[str, Any] = param(unit="", help="free-form labels recorded with the results (+tags.note=...); not "
+                                 "used by the model", factory=dict)
     report: ReportConfig = param(unit="", help="the report written at the end of a run or sweep",
                                  factory=ReportConfig)
     tuning: Optional[TuningConfig] = param(unit="", help="gain-tuning study set by +tune=<controller> (null: none)",

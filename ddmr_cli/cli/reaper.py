@@ -1,0 +1,59 @@
+"""Stops a ``ddmr run``'s worker processes when it is gone, even killed with SIGKILL (Linux).
+
+``ddmr run`` starts this file as a script (``python reaper.py PID HOST``, without importing the package) in a
+session of its own, its stdin a pipe only ``ddmr run`` holds. When that pipe closes (``ddmr run`` ended or was
+killed), the reaper ends every process whose environment carries ``DDMR_PARENT=HOST:PID`` (the joblib/loky and
+submitit_local workers of that run inherited it): SIGTERM, then SIGKILL after 2 s. Idle loky workers would
+otherwise wait out their 300 s idle timeout, and busy ones finish their job, after their parent died.
+Inside a job, :func:`ddmr_cli.cli.app._exit_with_parent` does the same for busy workers where /proc is missing.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+
+def workers(mark: bytes, exclude: int) -> list[int]:
+    """Pids of the processes whose environment holds the entry ``mark``."""
+    found = []
+    for name in os.listdir("/proc") if os.path.isdir("/proc") else []:
+        if not name.isdigit() or int(name) == exclude:
+            continue
+        try:
+            with open(f"/proc/{name}/environ", "rb") as fh:
+                if mark in fh.read().split(b"\0"):
+                    found.append(int(name))
+        except OSError:
+            continue
+    return found
+
+
+def reap(pid: int, host: str, grace: float = 2.0) -> list[int]:
+    """End the workers of ``ddmr run`` ``pid`` on ``host``; returns their pids."""
+    mark = f"DDMR_PARENT={host}:{pid}".encode()
+    victims = workers(mark, os.getpid())
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for victim in victims:
+            try:
+                os.kill(victim, sig)
+            except OSError:
+                pass
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline and workers(mark, os.getpid()):
+            time.sleep(0.1)
+    return victims
+
+
+def main(argv: list[str]) -> int:
+    pid, host = int(argv[0]), argv[1]
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.stdin.buffer.read()  # returns at end of file: ddmr run closed the pipe or died
+    reap(pid, host)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
