@@ -11,4 +11,9 @@ from ddmr_cli.cli.app import run_job
 
 @hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")
 def main(cfg: DictConfig) -> None:
-    run_job(cfg)
+    if cfg.get("study") is not None:  # a job of the sensitivity study (+experiment=sensitivity_*)
+        from ddmr_cli.study.task import execute_study
+
+        run_job(cfg, task=execute_study)
+    else:
+        run_job(cfg)

@@ -299,6 +299,8 @@ class DDMRConfig:
                                     entries=CLUSTER_KEYS, factory=dict)
     report: ReportConfig = param(unit="", help="the report written at the end of a run or sweep",
                                  factory=ReportConfig)
+    study: Any = param(None, unit="", help="sensitivity study of the paper's claims (conf/study, set by the "
+                       "+experiment=sensitivity_* presets; null: a plain run)", model=9)
 
 
 def register_configs() -> None:
