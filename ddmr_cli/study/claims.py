@@ -55,8 +55,8 @@ class Claim:
     @property
     def rule(self) -> str:
         if math.isinf(self.high):
-            return f">= {self.low:g} %"
-        return f"{self.low:g} to {self.high:g} %"
+            return f">= {self.low:.3g} %"
+        return f"{self.low:.3g} to {self.high:.3g} %"
 
 
 def _estimation_target() -> float:

@@ -58,9 +58,10 @@ def _from_unit(box: Box, names: list[str], unit: np.ndarray, faithful: Mapping[s
 
 
 def oat(box: Box, faithful: Mapping[str, Any], levels: int,
-        readings: Mapping[str, Mapping[str, Any]] | None = None) -> Design:
-    """The named readings (the faithful one first), then every parameter over its grid, the others faithful."""
-    named = points(box, faithful, {"faithful": {}, **(readings or {})})
+        readings: Mapping[str, Mapping[str, Any]] | None = None, full: Box | None = None) -> Design:
+    """The named readings (the faithful one first; parameters of ``full``, default ``box``), then every parameter
+    of ``box`` over its grid, the others faithful."""
+    named = points(full or box, faithful, {"faithful": {}, **(readings or {})})
     samples, labels = named.samples, named.labels
     for p in box.parameters:
         for value in p.grid(levels):
@@ -113,16 +114,19 @@ def points(box: Box, faithful: Mapping[str, Any], readings: Mapping[str, Mapping
     return Design("points", box.names, samples, labels, None)
 
 
-def build(study, box: Box, faithful: Mapping[str, Any]) -> Design:
-    """The design of ``study.stage`` (a composed ``study`` node)."""
+def build(study, box: Box, faithful: Mapping[str, Any], sweep_dir=None) -> Design:
+    """The design of ``study.stage`` (a composed ``study`` node); ``sweep_dir`` is the stage's sweep dir (where
+    ``study.calibrated`` looks for ``../calibration/calibration.json``)."""
     from omegaconf import OmegaConf
 
     stage = str(study.stage)
     seed = int(study.sampler_seed)
+    full = box
     vary = study.get("vary")
     box = box.restricted(None if vary is None else [str(n) for n in vary])
     if stage == "oat":
-        return oat(box, faithful, int(study.oat.levels), OmegaConf.to_container(study.points, resolve=True))
+        return oat(box, faithful, int(study.oat.levels), OmegaConf.to_container(study.points, resolve=True),
+                   full=full)
     if stage == "morris":
         return morris(box, faithful, int(study.morris.trajectories), int(study.morris.levels), seed)
     if stage == "sobol":
@@ -132,8 +136,27 @@ def build(study, box: Box, faithful: Mapping[str, Any]) -> Design:
     if stage == "calibration":
         return latin(box, faithful, int(study.calibration.samples), seed)
     if stage == "points":
-        return points(box, faithful, OmegaConf.to_container(study.points, resolve=True))
+        readings = OmegaConf.to_container(study.points, resolve=True)
+        if study.get("calibrated"):
+            from pathlib import Path
+
+            if sweep_dir is None:
+                raise ConfigError("study.calibrated", True, "needs the stage's sweep dir")
+            readings["calibrated"] = calibrated_reading(Path(sweep_dir).parent / "calibration" / "calibration.json")
+        return points(full, faithful, readings)
     raise ConfigError("study.stage", stage, f"must be one of {', '.join(STAGES)}")
+
+
+def calibrated_reading(path) -> dict[str, Any]:
+    """The best reading of a calibration stage's ``calibration.json``."""
+    import json
+    from pathlib import Path
+
+    try:
+        result = json.loads(Path(path).read_text(encoding="utf-8"))
+        return dict(result["reading"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError("study.calibrated", True, f"no calibration result at {path} ({exc})") from None
 
 
 def chunk_of(n_samples: int, chunk: int, chunks: int) -> list[int]:

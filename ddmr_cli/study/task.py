@@ -56,13 +56,14 @@ def study_configs(cfg: DictConfig) -> dict[tuple[str, str], DictConfig]:
     return out
 
 
-def study_setup(cfg: DictConfig) -> tuple[Box, dict[tuple[str, str], DictConfig], dict[str, Any], Design]:
+def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
+                ) -> tuple[Box, dict[tuple[str, str], DictConfig], dict[str, Any], Design]:
     """The box, the per controller and scenario configs, the faithful reading (read from the config of the last
-    controller, the one with every key: SMC-NDO-NNO) and the stage's design."""
+    controller, the one with every key: SMC-NDO-NNO) and the stage's design (``sweep_dir``: the stage's)."""
     box = Box.from_config(cfg.study)
     configs = study_configs(cfg)
     faithful = box.faithful(configs[list(configs)[-1]])
-    return box, configs, faithful, build(cfg.study, box, faithful)
+    return box, configs, faithful, build(cfg.study, box, faithful, sweep_dir)
 
 
 def simulate_sample(box: Box, configs: dict[tuple[str, str], DictConfig], sample: dict, seeds: list[int],
@@ -113,7 +114,7 @@ def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None
     from ddmr_cli.errors import DDMRError
 
     started = time.perf_counter()
-    box, configs, _, design = study_setup(cfg)
+    box, configs, _, design = study_setup(cfg, out.parent)
     indices = chunk_of(len(design.samples), int(cfg.study.chunk), int(cfg.study.chunks))
     seeds = seeds_of(cfg)
     threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
