@@ -166,6 +166,17 @@ class Box:
         option matching the config (None when none does)."""
         return {p.name: self._value_in(p, cfg) for p in self.parameters}
 
+    def faithful_across(self, configs: Sequence[DictConfig]) -> dict[str, Any]:
+        """:meth:`faithful`, each parameter read from the first of ``configs`` that has its first key."""
+        out = {}
+        for p in self.parameters:
+            key = next(iter(p.keys))
+            cfg = next((c for c in configs if _select(c, key) is not None), None)
+            if cfg is None:
+                raise ConfigError(f"study.parameters.{p.name}", key, "is not a key of any study config")
+            out[p.name] = self._value_in(p, cfg)
+        return out
+
     def _value_in(self, p: Parameter, cfg: DictConfig, base: DictConfig | None = None) -> Any:
         """The value of ``p`` that ``cfg`` holds; a scale parameter relative to ``base`` (1 without one)."""
         if p.is_choice:

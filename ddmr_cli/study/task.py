@@ -58,11 +58,11 @@ def study_configs(cfg: DictConfig) -> dict[tuple[str, str], DictConfig]:
 
 def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
                 ) -> tuple[Box, dict[tuple[str, str], DictConfig], dict[str, Any], Design]:
-    """The box, the per controller and scenario configs, the faithful reading (read from the config of the last
-    controller, the one with every key: SMC-NDO-NNO) and the stage's design (``sweep_dir``: the stage's)."""
+    """The box, the per controller and scenario configs, the faithful reading (each parameter read from the first
+    config that has its keys: the NN's from SMC-NDO-NNO's) and the stage's design (``sweep_dir``: the stage's)."""
     box = Box.from_config(cfg.study)
     configs = study_configs(cfg)
-    faithful = box.faithful(configs[list(configs)[-1]])
+    faithful = box.faithful_across(list(configs.values()))
     return box, configs, faithful, build(cfg.study, box, faithful, sweep_dir)
 
 
