@@ -96,6 +96,13 @@ def oat_figure(rows: "pd.DataFrame", box, faithful: dict, path: Path) -> Path:
     return save(fig, path)
 
 
+def _cell_edges(centres: np.ndarray) -> np.ndarray:
+    """Cell edges of a log-spaced grid: geometric midpoints, the ends mirrored."""
+    c = np.log(np.asarray(centres, float))
+    mid = (c[1:] + c[:-1]) / 2
+    return np.exp(np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]]))
+
+
 def map_figure(rows: "pd.DataFrame", x: str, y: str, path: Path) -> Path:
     """NNO-vs-NDO improvement over learning rate x width (log axes), both readings marked, the region of
     "about 40 %" (30-50 %) outlined."""
@@ -104,12 +111,16 @@ def map_figure(rows: "pd.DataFrame", x: str, y: str, path: Path) -> Path:
     xs, ys, z = grid.columns.to_numpy(float), grid.index.to_numpy(float), grid.to_numpy(float)
     fig, ax = plt.subplots(figsize=(6.4, 5.0))
     lim = max(10.0, float(np.nanmax(np.abs(z)))) if np.isfinite(z).any() else 10.0
-    mesh = ax.pcolormesh(xs, ys, z, shading="nearest", cmap="RdBu", vmin=-lim, vmax=lim)
+    if len(xs) > 1 and len(ys) > 1:  # cells centred on the grid points on the log axes
+        mesh = ax.pcolormesh(_cell_edges(xs), _cell_edges(ys), z, shading="flat", cmap="RdBu", vmin=-lim, vmax=lim)
+    else:
+        mesh = ax.pcolormesh(xs, ys, z, shading="nearest", cmap="RdBu", vmin=-lim, vmax=lim)
     fig.colorbar(mesh, ax=ax, label="NNO-vs-NDO improvement of the steady-state deviation [%]")
     if len(xs) > 1 and len(ys) > 1 and np.isfinite(z).any():
-        inside = ((z >= 30) & (z <= 50)).astype(float)
-        if inside.any():
-            ax.contour(xs, ys, inside, levels=[0.5], colors="k", linewidths=1.6)
+        ex, ey = _cell_edges(xs), _cell_edges(ys)
+        for i, j in zip(*np.nonzero((z >= 30) & (z <= 50))):  # outline every cell where "about 40 %" holds
+            ax.add_patch(plt.Rectangle((ex[j], ey[i]), ex[j + 1] - ex[j], ey[i + 1] - ey[i], fill=False, ec="k",
+                                       lw=1.8))
         ax.contour(xs, ys, z, levels=[0.0], colors="0.4", linewidths=0.8, linestyles=":")
     for marker, (name, (lr, width)) in zip(("*", "P"), READINGS.items()):
         ax.plot(lr, width, marker=marker, ms=13, color=OKABE_ITO["orange"], mec="k", ls="none",
@@ -119,8 +130,8 @@ def map_figure(rows: "pd.DataFrame", x: str, y: str, path: Path) -> Path:
     ax.set_xlabel(f"{x} (gamma) [1/s^2]")
     ax.set_ylabel(f"{y} (sigma) [rad/s]")
     share = float(np.mean((z >= 30) & (z <= 50))) if z.size else math.nan
-    ax.set_title(f"NNO vs NDO, mean of both scenarios; black outline: 30-50 % ({100 * share:.0f} % of the grid); "
-                 f"dotted: 0 %", fontsize=8)
+    ax.set_title(f"NNO vs NDO, mean of both scenarios; black boxes: cells at 30-50 % ({100 * share:.0f} % of the "
+                 f"grid); dotted: 0 %", fontsize=8)
     ax.legend(loc="lower left", fontsize=7)
     return save(fig, path)
 
