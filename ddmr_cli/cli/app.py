@@ -60,8 +60,9 @@ def _in_sweep() -> bool:
     return "MULTIRUN" in str(HydraConfig.get().mode)
 
 
-def run_job(cfg: DictConfig) -> dict:
-    """Run one job and write its outputs; returns its summary."""
+def run_job(cfg: DictConfig, task=None) -> dict:
+    """Run one job and write its outputs; returns its summary. ``task`` (default :func:`execute`, same
+    signature) is what the job does; the sensitivity study's jobs pass theirs (:mod:`ddmr_cli.study.task`)."""
     out, overrides = _job_info()
     if _in_sweep():
         _exit_with_parent()
@@ -79,7 +80,7 @@ def run_job(cfg: DictConfig) -> dict:
         jobdir.begin(out)
         sim = validate_config(cfg)
         base["controller"], base["scenario"] = _names(cfg)
-        summary = execute(cfg, out, overrides, digest, sim)
+        summary = (task or execute)(cfg, out, overrides, digest, sim)
     except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
         error = f"{type(exc).__name__}: {exc}"
         fault = jobdir.fault(exc, out) if isinstance(exc, OSError) else None

@@ -15,5 +15,10 @@ def main(cfg: DictConfig) -> float | list[float] | None:
         from ddmr_cli.cli.tuning import run_trial
 
         return run_trial(cfg)
+    if cfg.get("study") is not None:  # a job of the sensitivity study (+experiment=sensitivity_*)
+        from ddmr_cli.study.task import execute_study
+
+        run_job(cfg, task=execute_study)
+        return None
     run_job(cfg)
     return None

@@ -40,6 +40,8 @@ commands:
   report [PATH] [--out DIR] [--margin 0.1mm]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
                           (default PATH: the latest sweep under ./outputs)
   bench [--quick]         print engine and end-to-end performance figures for this machine
+  sensitivity [--out DIR] [OVERRIDES]  the sensitivity of the paper's claims and the reading nearest its Table 4
+                          (every stage a sweep; study=quick for the CI size; docs/model.md §11)
   --version               print the version
 """
 
@@ -595,6 +597,12 @@ def cmd_report(argv: list[str]) -> int:
     return write_report(Path(path), args.out, args.margin)
 
 
+def cmd_sensitivity(argv: list[str]) -> int:
+    from ddmr_cli.cli.sensitivity import main as sensitivity_main
+
+    return sensitivity_main(argv)
+
+
 def cmd_bench(argv: list[str]) -> int:
     from ddmr_cli.cli.bench import main as bench_main
 
@@ -627,7 +635,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[0] in ("-sc", "--shell-completion"):  # the installed completion script asks `ddmr -sc query=...`
         return _complete(argv)
     command, rest = argv[0], argv[1:]
-    commands = {"run": cmd_run, "explain": cmd_explain, "report": cmd_report, "bench": cmd_bench}
+    commands = {"run": cmd_run, "explain": cmd_explain, "report": cmd_report, "bench": cmd_bench,
+                "sensitivity": cmd_sensitivity}
     if command not in commands:
         return _fail(f"unknown command {command!r}; available: {', '.join(commands)} (ddmr --help)")
     logging.getLogger("matplotlib").setLevel(logging.WARNING)

@@ -436,6 +436,8 @@ class DDMRConfig:
                                  factory=ReportConfig)
     tuning: Optional[TuningConfig] = param(unit="", help="gain-tuning study set by +tune=<controller> (null: none)",
                                            model=9)
+    study: Any = param(None, unit="", help="sensitivity study of the paper's claims (conf/study, set by the "
+                       "+experiment=sensitivity_* presets; null: a plain run)", model=11)
 
 
 def register_configs() -> None:

@@ -1,0 +1,178 @@
+"""The analyses of a study stage's rows (docs/model.md §11): Morris elementary effects, Sobol indices (SALib),
+the share of the box where each claim holds, the calibration's best reading.
+
+Each writes CSV/JSON into the stage's sweep dir (:func:`analyse`, called by the sweep callback at the end of the
+multirun) and the report (:mod:`ddmr_cli.report.sensitivity`) reads them back.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Sequence
+
+import numpy as np
+
+from ddmr_cli.cli import io
+from ddmr_cli.study import claims as claim_stats
+from ddmr_cli.study.design import Design, problem
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+MORRIS_CSV = "morris.csv"
+SOBOL_CSV = "sobol.csv"
+HOLDS_CSV = "holds.csv"
+CALIBRATION_JSON = "calibration.json"
+
+
+def outputs(rows: "pd.DataFrame", claim: str) -> tuple[np.ndarray, int]:
+    """A claim statistic per sample, NaN (a failed or diverged sample) replaced by the median of the others
+    (SALib's estimators need every sample); returns the values and how many were replaced."""
+    y = rows[claim].to_numpy(float) if claim in rows else np.full(len(rows), np.nan)
+    bad = ~np.isfinite(y)
+    if bad.all():
+        return np.zeros_like(y), int(bad.sum())
+    y = y.copy()
+    y[bad] = float(np.median(y[~bad]))
+    return y, int(bad.sum())
+
+
+def _aligned(rows: "pd.DataFrame", design: Design) -> "pd.DataFrame":
+    """The rows in design order, one per sample (the analyses need the whole design)."""
+    rows = rows.drop_duplicates("sample", keep="last").set_index("sample")
+    missing = sorted(set(range(len(design.samples))) - set(rows.index))
+    if missing:
+        raise ValueError(f"{len(missing)} samples of the {design.stage} design have no row (first: {missing[0]})")
+    return rows.loc[list(range(len(design.samples)))].reset_index()
+
+
+def morris(rows: "pd.DataFrame", design: Design, levels: int, seed: int) -> "pd.DataFrame":
+    """Per claim and parameter: mu, mu*, its 95 % CI half-width, sigma (SALib ``morris.analyze``)."""
+    import pandas as pd
+    from SALib.analyze import morris as morris_analyze
+
+    rows = _aligned(rows, design)
+    out = []
+    for claim in claim_stats.CLAIM_IDS:
+        y, replaced = outputs(rows, claim)
+        res = morris_analyze.analyze(problem(design.names), design.unit, y, num_levels=levels, seed=seed,
+                                     print_to_console=False)
+        for i, name in enumerate(design.names):
+            out.append({"claim": claim, "parameter": name, "mu": res["mu"][i], "mu_star": res["mu_star"][i],
+                        "mu_star_conf": res["mu_star_conf"][i], "sigma": res["sigma"][i], "replaced": replaced})
+    return pd.DataFrame(out)
+
+
+def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "pd.DataFrame":
+    """Per claim and parameter: first-order S1 and total ST with 95 % CI half-widths (SALib ``sobol.analyze``,
+    bootstrap)."""
+    import pandas as pd
+    from SALib.analyze import sobol as sobol_analyze
+
+    rows = _aligned(rows, design)
+    out = []
+    for claim in claim_stats.CLAIM_IDS:
+        y, replaced = outputs(rows, claim)
+        if np.ptp(y) <= 0:  # a constant statistic: no variance to apportion
+            res = {k: np.full(len(design.names), np.nan) for k in ("S1", "S1_conf", "ST", "ST_conf")}
+        else:
+            res = sobol_analyze.analyze(problem(design.names), y, calc_second_order=False, num_resamples=resamples,
+                                        conf_level=0.95, seed=seed, print_to_console=False)
+        for i, name in enumerate(design.names):
+            out.append({"claim": claim, "parameter": name, "S1": res["S1"][i], "S1_conf": res["S1_conf"][i],
+                        "ST": res["ST"][i], "ST_conf": res["ST_conf"][i], "replaced": replaced})
+    return pd.DataFrame(out)
+
+
+def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a proportion."""
+    if n == 0:
+        return math.nan, math.nan
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def holds(rows: "pd.DataFrame") -> "pd.DataFrame":
+    """Per claim: the share of samples where it holds (failed samples count as not holding), with a 95 %
+    Wilson interval, and the median of its statistic. On the calibration's Latin hypercube this is the share of
+    the box."""
+    import pandas as pd
+
+    out = []
+    for claim in claim_stats.claims():
+        flag = rows[f"{claim.id}_holds"].to_numpy(float) if f"{claim.id}_holds" in rows else np.zeros(len(rows))
+        k, n = int(np.nansum(flag)), len(rows)
+        low, high = wilson(k, n)
+        out.append({"claim": claim.id, "text": claim.text, "rule": claim.rule, "samples": n, "holds": k,
+                    "share": k / n if n else math.nan, "share_low": low, "share_high": high,
+                    "unusable": int(np.sum(~np.isfinite(flag))),
+                    "median": float(np.nanmedian(rows[claim.id])) if claim.id in rows and n else math.nan})
+    return pd.DataFrame(out)
+
+
+def calibration(rows: "pd.DataFrame", names: Sequence[str]) -> dict:
+    """The sample nearest the paper's Table 4: its reading, distance, residual per number, claims."""
+    ok = rows[np.isfinite(rows["distance"].to_numpy(float))] if "distance" in rows else rows.iloc[:0]
+    if ok.empty:
+        return {"samples": len(rows), "usable": 0, "distance": None}
+    best = ok.loc[ok["distance"].idxmin()]
+    ours = {k: float(best[k]) for k in claim_stats.paper_table4()}
+    residuals = claim_stats.log_residuals(ours)
+    paper = claim_stats.paper_table4()
+    return {
+        "samples": len(rows), "usable": len(ok), "distance": float(best["distance"]),
+        "distance_median": float(ok["distance"].median()),
+        "sample": int(best["sample"]),
+        "reading": {n: _scalar(best[n]) for n in names},
+        "numbers": [{"number": k, "paper": paper[k], "ours": ours[k], "log_ratio": residuals[k],
+                     "ratio": math.exp(residuals[k]) if np.isfinite(residuals[k]) else math.nan} for k in paper],
+        "claims": {c.id: {"statistic": float(best[c.id]), "holds": bool(best[f"{c.id}_holds"] == 1.0),
+                          "rule": c.rule} for c in claim_stats.claims()},
+    }
+
+
+def _scalar(value):
+    if isinstance(value, (np.floating, float)):
+        return float(value)
+    if isinstance(value, (np.integer, int)):
+        return int(value)
+    return str(value)
+
+
+def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
+    """Write the stage's analysis into ``sweep_dir``; returns summary lines for the terminal."""
+    from ddmr_cli.study.task import study_setup
+
+    box, _, _, design = study_setup(config, sweep_dir)
+    study = config.study
+    lines = []
+    if design.stage == "morris":
+        table = morris(rows, design, int(study.morris.levels), int(study.sampler_seed))
+        io.write_csv(sweep_dir / MORRIS_CSV, table)
+        for claim, part in table.groupby("claim", sort=False):
+            top = part.sort_values("mu_star", ascending=False).head(3)
+            lines.append(f"morris {claim}: " + ", ".join(f"{r.parameter} {r.mu_star:.3g}" for r in top.itertuples()))
+    elif design.stage == "sobol":
+        table = sobol(rows, design, int(study.sobol.resamples), int(study.sampler_seed))
+        io.write_csv(sweep_dir / SOBOL_CSV, table)
+        for claim, part in table.groupby("claim", sort=False):
+            lines.append(f"sobol {claim} ST: " + ", ".join(f"{r.parameter} {r.ST:.2f}" for r in part.itertuples()))
+    if design.stage in ("calibration", "morris", "sobol"):
+        table = holds(rows)
+        io.write_csv(sweep_dir / HOLDS_CSV, table)
+        lines += [f"{r.claim} holds in {r.holds}/{r.samples} samples" for r in table.itertuples()]
+    if design.stage == "calibration":
+        result = calibration(rows, box.global_names())
+        io.write_text(sweep_dir / CALIBRATION_JSON, json.dumps(result, indent=2))
+        if result["distance"] is not None:
+            lines.append(f"calibration: best distance {result['distance']:.3f} (RMS log ratio) at sample "
+                         f"{result['sample']}")
+    return lines
+
+
+__all__ = ["morris", "sobol", "holds", "calibration", "analyse", "outputs", "wilson", "MORRIS_CSV", "SOBOL_CSV",
+           "HOLDS_CSV", "CALIBRATION_JSON"]

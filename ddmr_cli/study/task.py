@@ -1,0 +1,187 @@
+"""The sensitivity study's Hydra job and sweep callback (docs/model.md §11).
+
+A job (``ddmr run -m +experiment=sensitivity_<stage>``, one per ``study.chunk``) computes the stage's design
+(:mod:`ddmr_cli.study.design`, the same in every job), takes its share of the samples, and for each sample runs
+every controller of ``study.configs.controller`` in every scenario of ``study.configs.scenario`` over the job's
+seeds (``run.n_runs`` from ``run.base_seed``, one batch per controller and scenario), with the sample's values set
+on the config (:meth:`~ddmr_cli.study.space.Box.apply`). It writes ``study_rows.csv`` (one row per sample: its
+values, claim statistics, Table 4 numbers, distance to the paper) and ``summary.json``; it goes through
+:func:`ddmr_cli.cli.app.run_job`, so a job with a complete summary of the same config is skipped (resume), and a
+failing job is recorded. A sample whose values a model part refuses, or whose run diverges, is a row with status
+``failed`` or NaN statistics, not a failed job.
+
+:class:`StudyAggregator` (the stage presets' ``hydra.callbacks.sweep_table``) writes the sweep plan at the start
+and, at the end, ``study.csv`` (every job's rows, by sample) and the stage's analysis
+(:func:`ddmr_cli.study.analysis.analyse`).
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig
+
+from ddmr_cli.cli import io
+from ddmr_cli.cli.sweep import SweepAggregator, _shutdown_joblib_workers, read_state
+from ddmr_cli.study import claims as claim_stats
+from ddmr_cli.study.design import Design, build, chunk_of
+from ddmr_cli.study.space import Box
+
+log = logging.getLogger("ddmr")
+
+STUDY_ROWS = "study_rows.csv"
+STUDY_CSV = "study.csv"
+
+
+def study_configs(cfg: DictConfig) -> dict[tuple[str, str], DictConfig]:
+    """(controller, scenario) -> the job's config with that controller and scenario (no ``study`` node)."""
+    from omegaconf import open_dict
+
+    base = copy.deepcopy(cfg)
+    study = base.study
+    base.study = None
+    with open_dict(base):
+        base.pop("hydra", None)
+    out = {}
+    for c, c_cfg in study.configs.controller.items():
+        for s, s_cfg in study.configs.scenario.items():
+            one = copy.deepcopy(base)
+            one.controller = c_cfg
+            one.scenario = s_cfg
+            out[(str(c), str(s))] = one
+    return out
+
+
+def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
+                ) -> tuple[Box, dict[tuple[str, str], DictConfig], dict[str, Any], Design]:
+    """The box, the per controller and scenario configs, the faithful reading (each parameter read from the first
+    config that has its keys: the NN's from SMC-NDO-NNO's) and the stage's design (``sweep_dir``: the stage's)."""
+    box = Box.from_config(cfg.study)
+    configs = study_configs(cfg)
+    faithful = box.faithful_across(list(configs.values()))
+    return box, configs, faithful, build(cfg.study, box, faithful, sweep_dir)
+
+
+def simulate_sample(box: Box, configs: dict[tuple[str, str], DictConfig], sample: dict, seeds: list[int],
+                    threads: int) -> tuple[dict, int, int]:
+    """Every controller and scenario at one reading: per (controller, scenario) the per-seed metrics
+    (:data:`~ddmr_cli.study.claims.METRICS`), and the counts of runs and diverged runs."""
+    from ddmr_cli.cli.config import validate_config
+    from ddmr_cli.engine.simulation import simulate
+
+    runs, n, diverged = {}, 0, 0
+    for key, base in configs.items():
+        sim = validate_config(box.apply(sample, base))
+        result = simulate(sim, seeds, bands=False, threads=threads)
+        runs[key] = {m: result.metric(m) for m in claim_stats.METRICS}
+        n += len(seeds)
+        diverged += int(result.diverged.sum())
+    return runs, n, diverged
+
+
+def sample_row(index: int, label: str, sample: dict, runs: dict | None, scenarios: list[str]) -> dict:
+    """One row of ``study_rows.csv``: the sample, its claim statistics, Table 4 and distance (NaN if no runs)."""
+    row: dict[str, Any] = {"sample": index, "label": label, **sample}
+    if runs is None:
+        return row
+    row.update(claim_stats.statistics(runs, scenarios))
+    table = claim_stats.table4(runs)
+    row.update(table)
+    row["distance"] = claim_stats.distance(table)
+    for (c, s), metrics in runs.items():
+        row[f"dev_ss:{c}:{s}"] = float(_nanmean(metrics[claim_stats.DEVIATION]))
+    return row
+
+
+def _nanmean(values) -> float:
+    import numpy as np
+
+    values = np.asarray(values, float)
+    return float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else float("nan")
+
+
+def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None,
+                  sim=None) -> dict:
+    """The study job (the ``task`` of :func:`ddmr_cli.cli.app.run_job`): its share of the stage's samples."""
+    import pandas as pd
+
+    from ddmr_cli.cli.app import _in_sweep
+    from ddmr_cli.cli.config import config_hash, seeds_of
+    from ddmr_cli.errors import DDMRError
+
+    started = time.perf_counter()
+    box, configs, _, design = study_setup(cfg, out.parent)
+    indices = chunk_of(len(design.samples), int(cfg.study.chunk), int(cfg.study.chunks))
+    seeds = seeds_of(cfg)
+    threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
+    scenarios = list(dict.fromkeys(s for _, s in configs))
+    rows, n_runs, n_diverged, failed = [], 0, 0, 0
+    for count, i in enumerate(indices):
+        sample = design.samples[i]
+        try:
+            runs, n, d = simulate_sample(box, configs, sample, seeds, threads)
+            row = {**sample_row(i, design.labels[i], sample, runs, scenarios), "status": "ok", "error": ""}
+            n_runs, n_diverged = n_runs + n, n_diverged + d
+            row.update({"runs": n, "diverged": d})
+        except (DDMRError, ValueError) as exc:  # a value a model part refuses: this sample only
+            failed += 1
+            row = {**sample_row(i, design.labels[i], sample, None, scenarios), "status": "failed",
+                   "error": " ".join(str(exc).split())}
+        rows.append(row)
+        if cfg.run.progress and (count + 1) % 10 == 0:
+            log.info("study %s chunk %s: %d/%d samples, %.1f s", design.stage, cfg.study.chunk, count + 1,
+                     len(indices), time.perf_counter() - started)
+    io.write_csv(out / STUDY_ROWS, pd.DataFrame(rows))
+    wall = time.perf_counter() - started
+    summary = {
+        "status": "complete", "controller": "study", "scenario": design.stage, "overrides": overrides or [],
+        "config_hash": digest or config_hash(cfg), "stage": design.stage, "samples": len(indices),
+        "samples_failed": failed, "design_size": len(design.samples),
+        "seeds": [seeds[0], seeds[-1]], "statistics": {"runs": n_runs, "diverged": n_diverged},
+        "wall_time": wall, "files": [STUDY_ROWS],
+    }
+    io.write_json(out / io.SUMMARY, summary)
+    log.info("study %s chunk %s: %d samples (%d failed), %d runs (%d diverged) in %.1f s -> %s", design.stage,
+             cfg.study.chunk, len(indices), failed, n_runs, n_diverged, wall, out)
+    return summary
+
+
+def collect(sweep_dir: Path) -> "pd.DataFrame":
+    """Every complete job's rows of a study sweep dir, by sample index."""
+    import pandas as pd
+
+    state = read_state(Path(sweep_dir))
+    frames = [pd.read_csv(d / STUDY_ROWS) for d, s in state.complete if (d / STUDY_ROWS).is_file()]
+    if not frames:
+        return pd.DataFrame()
+    return pd.concat(frames, ignore_index=True).sort_values("sample", kind="mergesort").reset_index(drop=True)
+
+
+class StudyAggregator(SweepAggregator):
+    """Hydra callback of the study presets: the sweep plan at the start; ``study.csv`` and the stage's analysis
+    at the end."""
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        from ddmr_cli.study.analysis import analyse
+
+        sweep_dir = Path(config.hydra.sweep.dir)
+        state = read_state(sweep_dir)
+        rows = collect(sweep_dir)
+        io.write_csv(sweep_dir / STUDY_CSV, rows)
+        runs = int(sum(s.get("statistics", {}).get("runs", 0) or 0 for _, s in state.complete))
+        wall = sum(float(s.get("wall_time") or 0) for _, s in state.complete)
+        print(f"\nddmr study {config.study.stage}: {len(state.complete)} jobs complete, {len(state.failed)} failed, "
+              f"{len(state.missing)} missing; {len(rows)} samples, {runs} simulated runs, {wall:.1f} s in jobs "
+              f"-> {sweep_dir}")
+        if not rows.empty and not state.missing and not state.failed:
+            for line in analyse(sweep_dir, config, rows):
+                print("  " + line)
+        _shutdown_joblib_workers()
+
+
+__all__ = ["execute_study", "study_setup", "study_configs", "simulate_sample", "sample_row", "collect",
+           "StudyAggregator", "STUDY_ROWS", "STUDY_CSV"]
