@@ -284,8 +284,12 @@ def finish(launch: Launch) -> int:
 
         status = finish_study(launch.out_dir)
     elif launch.multirun:
+        from ddmr_cli.study.task import STUDY_CSV
+
         state = sweep.read_state(launch.out_dir, plan=list(launch.plan))
-        status = 0 if state.ok and (launch.out_dir / sweep.JOBS_CSV).is_file() else EXIT_FAILED
+        # a sweep writes its tables; a sensitivity-study stage (+experiment=sensitivity_*) writes its study table
+        tables = (launch.out_dir / sweep.JOBS_CSV).is_file() or (launch.out_dir / STUDY_CSV).is_file()
+        status = 0 if state.ok and tables else EXIT_FAILED
         faults = [s["fault"] for _, s in state.failed if isinstance(s.get("fault"), dict)]
         if faults:
             more = f" ({len(faults)} jobs failed on file-system faults)" if len(faults) > 1 else ""

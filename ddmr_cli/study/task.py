@@ -25,7 +25,7 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from ddmr_cli.cli import io
+from ddmr_cli.cli import io, jobdir
 from ddmr_cli.cli.sweep import SweepAggregator, _shutdown_joblib_workers, read_state
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study.design import Design, build, chunk_of
@@ -135,16 +135,18 @@ def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None
         if cfg.run.progress and (count + 1) % 10 == 0:
             log.info("study %s chunk %s: %d/%d samples, %.1f s", design.stage, cfg.study.chunk, count + 1,
                      len(indices), time.perf_counter() - started)
-    io.write_csv(out / STUDY_ROWS, pd.DataFrame(rows))
     wall = time.perf_counter() - started
     summary = {
         "status": "complete", "controller": "study", "scenario": design.stage, "overrides": overrides or [],
         "config_hash": digest or config_hash(cfg), "stage": design.stage, "samples": len(indices),
         "samples_failed": failed, "design_size": len(design.samples),
         "seeds": [seeds[0], seeds[-1]], "statistics": {"runs": n_runs, "diverged": n_diverged},
-        "wall_time": wall, "files": [STUDY_ROWS],
+        "wall_time": wall,
     }
-    io.write_json(out / io.SUMMARY, summary)
+    # staged and moved in with the summary (and every file's digest) last, as any job (cli/jobdir.py)
+    with jobdir.Stage(out) as stage:
+        io.write_csv(stage.path / STUDY_ROWS, pd.DataFrame(rows))
+        summary = stage.commit(summary)
     log.info("study %s chunk %s: %d samples (%d failed), %d runs (%d diverged) in %.1f s -> %s", design.stage,
              cfg.study.chunk, len(indices), failed, n_runs, n_diverged, wall, out)
     return summary

@@ -135,6 +135,15 @@ def _targets(node: DictConfig, path: str) -> Iterator[tuple[str, Any]]:
             yield from _targets(node[key], f"{path}.{key}" if path else str(key))
 
 
+def _study_role(path: str) -> str:
+    """The role of a node of a sensitivity study's own configs: ``study.configs.controller.pid.ndo`` is a
+    ``controller.ndo`` (the study builds one simulation per controller option, docs/model.md §11)."""
+    parts = path.split(".")
+    if len(parts) >= 4 and parts[:2] == ["study", "configs"]:
+        return ".".join([parts[2], *parts[4:]])
+    return path
+
+
 def check_target_classes(cfg: DictConfig) -> None:
     """Every ``_target_`` sits where the config instantiates a class and names a class of the right kind (a
     controller node a :class:`~ddmr_cli.control.base.WheelController`, ...), not any ``ddmr_cli`` class."""
@@ -143,13 +152,13 @@ def check_target_classes(cfg: DictConfig) -> None:
     from hydra._internal.utils import _locate  # hydra.utils.get_class also logs an error line on failure
 
     for path, target in ((p, t) for p, t in _targets(cfg, "") if p != "hydra" and not p.startswith("hydra.")):
-        if path not in TARGET_BASES:
+        if path not in TARGET_BASES and _study_role(path) not in TARGET_BASES:
             raise ConfigError(f"{path}._target_", target, f"no class is instantiated from {path}")
         try:
             cls = _locate(str(target))
         except Exception as exc:  # noqa: BLE001  (Hydra wraps import errors of any kind)
             raise ConfigError(f"{path}._target_", target, f"cannot be imported ({type(exc).__name__})") from None
-        module, base = TARGET_BASES[path]
+        module, base = TARGET_BASES[path if path in TARGET_BASES else _study_role(path)]
         if not isinstance(cls, type):
             raise ConfigError(f"{path}._target_", target, "must name a class")
         if base is None:
