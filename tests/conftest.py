@@ -27,6 +27,13 @@ def run_ddmr(args, cwd, timeout=600, env=None):
                           env=full_env)
 
 
+def catalogue(cases, fast=1, ids=None):
+    """Parametrize values for a catalogue of like cases: the first ``fast`` run in the fast suite (``pytest -m "not
+    slow"``), the rest are marked slow; the README's test command runs them all. A tuple is one case's arguments."""
+    return [pytest.param(*(c if isinstance(c, tuple) else (c,)), id=None if ids is None else ids[i],
+                         marks=() if i < fast else pytest.mark.slow) for i, c in enumerate(cases)]
+
+
 @pytest.fixture(scope="session")
 def smoke_sweep_dir(tmp_path_factory) -> Path:
     """A complete ``+experiment=smoke`` sweep (joblib launcher), run once for the whole session."""

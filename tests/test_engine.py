@@ -74,6 +74,7 @@ def _assert_same(a: dict, b: dict, rtol: float) -> None:
         np.testing.assert_allclose(b[key]["u"], a[key]["u"], rtol=rtol, atol=1e-12, err_msg=f"{key} u")
 
 
+@pytest.mark.slow  # two interpreter processes
 @pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; without it every run is the Python fallback")
 def test_plain_python_gives_the_compiled_numbers(compiled_runs):
     python = _run({"NUMBA_DISABLE_JIT": "1"}, duration=0.3)
@@ -82,6 +83,7 @@ def test_plain_python_gives_the_compiled_numbers(compiled_runs):
     _assert_same(compiled_runs["runs"], python["runs"], rtol=1e-12)
 
 
+@pytest.mark.slow  # two interpreter processes
 @pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; without it every run is the Python fallback")
 def test_without_numba_installed_the_same_laws_run_as_python(compiled_runs):
     block = "import builtins; _imp = builtins.__import__\n" \

@@ -7,6 +7,7 @@ validates and runs; and the validator's stability verdicts use closed-form roots
 
 from __future__ import annotations
 
+import copy
 import itertools
 
 import numpy as np
@@ -48,12 +49,17 @@ def test_a_matrix_symmetric_to_one_ulp_is_accepted_and_a_clearly_asymmetric_one_
         WheelMatrix.of(skewed)
 
 
+@pytest.fixture(scope="module")
+def short_nno_config():
+    return compose_config(["simulation.duration=0.05", "run.n_runs=2", "controller=smc_ndo_nno"])
+
+
 @pytest.mark.parametrize("mass,track_width,yaw_inertia,wheel_inertia", list(itertools.product(
     (5.0, 15.0, 20.0, 60.0), (0.3, 0.4, 0.5), (0.27, 1.5), (0.0075, 0.02))))
-def test_a_grid_of_robots_builds_validates_and_runs(mass, track_width, yaw_inertia, wheel_inertia):
-    cfg = compose_config([f"robot.mass={mass}", f"robot.track_width={track_width}", f"robot.yaw_inertia={yaw_inertia}",
-                          f"robot.wheel_inertia={wheel_inertia}", "simulation.duration=0.05", "run.n_runs=2",
-                          "controller=smc_ndo_nno"])
+def test_a_grid_of_robots_builds_validates_and_runs(short_nno_config, mass, track_width, yaw_inertia, wheel_inertia):
+    cfg = copy.deepcopy(short_nno_config)  # the same as the overrides robot.mass=... (composed once: 0.1 s each)
+    cfg.robot.mass, cfg.robot.track_width, cfg.robot.yaw_inertia, cfg.robot.wheel_inertia = (
+        mass, track_width, yaw_inertia, wheel_inertia)
     validate_config(cfg)
     result = simulate(build_simulation(cfg), seeds=[0, 1])
     assert not result.diverged.any()

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import catalogue
 
 import ddmr_cli.engine.simulation as simulation_module
 from ddmr_cli import ConfigError, paper_simulation, simulate
@@ -180,7 +181,7 @@ def test_determinism_with_every_effect_on(effects, monkeypatch):
 
 # --- validation ---------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("overrides,key", [
+@pytest.mark.parametrize("overrides,key", catalogue([
     (("sensor=noisy", "sensor.speed_std=-0.1"), "sensor.speed_std"),
     (("sensor=noisy", "sensor.position_std=-1"), "sensor.position_std"),
     (("sensor=encoder", "sensor.counts_per_rev=0"), "sensor.counts_per_rev"),
@@ -194,7 +195,7 @@ def test_determinism_with_every_effect_on(effects, monkeypatch):
     (("control.rate=0",), "control.rate"),
     (("controller=pid", "control.rate=200"), "control.rate"),  # the sampled PD loop is unstable at 5 ms
     (("controller=smc", "control.rate=50"), "control.rate"),  # lambda + K/Phi = 145 1/s at 20 ms
-])
+], fast=2))
 def test_bad_realism_settings_are_refused_naming_the_key(overrides, key):
     with pytest.raises(ConfigError) as err:
         paper_simulation(*overrides).validate()

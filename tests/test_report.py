@@ -59,21 +59,32 @@ def _files(root: Path) -> dict[str, float]:
     return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
 
 
-@pytest.fixture(scope="module")
-def mini_report(mini_sweep, tmp_path_factory):
+def _private_report(mini_sweep, tmp_path_factory, figures: bool) -> Path:
     """The report of a private copy of the sweep, checking it writes only under its out dir."""
     from ddmr_cli.report import build_report
 
     sweep = tmp_path_factory.mktemp("report") / "sweep"
     shutil.copytree(mini_sweep, sweep)
     before = _files(sweep.parent)
-    out = build_report(sweep)
+    out = build_report(sweep, figures=figures)
     after = _files(sweep.parent)
     changed = {f for f in after if before.get(f) != after[f]}
     assert out == sweep / "report"
     assert changed and all(f.startswith("sweep/report/") for f in changed), sorted(changed)[:10]
     assert set(before) <= set(after)
     return out
+
+
+@pytest.fixture(scope="module")
+def mini_report(mini_sweep, tmp_path_factory):
+    """The report's text and tables (``figures=False``: the same markdown and CSVs, no PNG drawn)."""
+    return _private_report(mini_sweep, tmp_path_factory, figures=False)
+
+
+@pytest.fixture(scope="module")
+def figure_report(mini_sweep, tmp_path_factory):
+    """The full report, figures drawn (seconds of matplotlib: its tests are marked slow)."""
+    return _private_report(mini_sweep, tmp_path_factory, figures=True)
 
 
 def _read(path: Path):
@@ -108,6 +119,10 @@ def test_report_layout(mini_report):
         "jobs.csv", "table3_parameters.csv", "table4.csv", "verdicts.csv", "chattering.csv", "energy.csv",
         "saturation.csv", "estimation.csv", "nn_share.csv", "deviation_by_zone.csv", "deviation_by_phase.csv",
         "statistics.csv"])
+    # figures=False (ddmr report --no-figures): the same text and tables, no PNG, and the report says so
+    assert not (mini_report / "figures").exists()
+    assert "Not drawn (`ddmr report --no-figures`)" in _section(_md(mini_report), "Figures")
+    _links_resolve(mini_report, _md(mini_report))
 
 
 def test_table4_rows_columns_and_paper_numbers(mini_report):
@@ -206,8 +221,9 @@ FIGURES = ("fig03_terrain", "fig04_trajectory", "fig05_deviation", "fig06_pose_e
            "nn_share", "fig08_voltage", "spectrum_u", "fig09_sliding", "deviation_spread")
 
 
-def test_figures_are_valid_pngs(mini_report):
-    figures = sorted((mini_report / "figures").glob("*.png"))
+@pytest.mark.slow
+def test_figures_are_valid_pngs(figure_report):
+    figures = sorted((figure_report / "figures").glob("*.png"))
     names = {p.name for p in figures}
     assert names == {f"{s}_{stem}.png" for s in SCENARIOS for stem in FIGURES} | {"paper_2_fig10_environment.png"}
     import matplotlib.image
@@ -219,11 +235,13 @@ def test_figures_are_valid_pngs(mini_report):
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 200, path.name
 
 
-def test_captions_state_paper_and_ours(mini_report):
-    md = _md(mini_report)
+@pytest.mark.slow
+def test_captions_state_paper_and_ours(figure_report):
+    md = _md(figure_report)
     figures = _section(md, "Figures")
+    assert "Okabe" in figures  # the colour legend
     captions = re.findall(r"^\*\*(.+?)\.\*\* (.+)$", figures, flags=re.M)
-    assert len(captions) == len(list((mini_report / "figures").glob("*.png")))
+    assert len(captions) == len(list((figure_report / "figures").glob("*.png")))
     for title, caption in captions:
         assert "Paper —" in caption and "Ours" in caption, title
     scenario_1 = figures.split("### paper_1", 1)[1].split("### paper_2", 1)[0]
@@ -239,12 +257,13 @@ def test_captions_state_paper_and_ours(mini_report):
     assert "shaded bands alternate the scenario's phases" in figures
 
 
-def test_report_links_resolve(mini_report):
-    md = _md(mini_report)
+@pytest.mark.slow
+def test_report_links_resolve(figure_report):
+    md = _md(figure_report)
     images = re.findall(r"!\[[^\]]*\]\(([^)\s]+)\)", md)
-    assert len(images) == len(list((mini_report / "figures").glob("*.png")))
+    assert len(images) == len(list((figure_report / "figures").glob("*.png")))
     assert any(link.startswith("tables/") for link in re.findall(r"\]\(([^)\s]+)\)", md))
-    _links_resolve(mini_report, md)
+    _links_resolve(figure_report, md)
 
 
 def test_report_states_configuration(mini_report):
@@ -254,7 +273,7 @@ def test_report_states_configuration(mini_report):
             f"simulation.dt=0.002 run.n_runs={N_RUNS}") in md and f"hydra.sweep.dir={sweep}" in md
     assert f"ddmr report {sweep}" in md
     for text in ("simulation.dt | 0.002", f"run.n_runs | {N_RUNS}", "Table 3 / eq. (25) reading", "text reading",
-                 "compared against scenario 1", "None: every job of the sweep is complete", "Okabe"):
+                 "compared against scenario 1", "None: every job of the sweep is complete"):
         assert text in md, text
 
 
@@ -315,7 +334,7 @@ def test_failed_job_is_listed(mini_sweep, tmp_path):
     job = sweep / "controller=pid,scenario=paper_2"
     summary = json.loads((job / "summary.json").read_text())
     (job / "summary.json").write_text(json.dumps({**summary, "status": "failed", "error": "SimulationError: boom"}))
-    missing = _section(_md(build_report(sweep)), "Missing or failed jobs")
+    missing = _section(_md(build_report(sweep, figures=False)), "Missing or failed jobs")
     assert "controller=pid,scenario=paper_2" in missing and "SimulationError: boom" in missing
 
 
@@ -386,7 +405,7 @@ def test_steady_state_columns_are_used(mini_sweep, tmp_path):
     sweep = tmp_path / "ss"
     shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz"))
     _add_steady_state(sweep, {"smc_ndo_nno": 0.25})
-    out = build_report(sweep)
+    out = build_report(sweep, figures=False)
     t4 = _read(out / "tables" / "table4.csv").set_index(["scenario", "controller"])
     assert np.allclose(t4["deviation_mean_ss"].loc[("paper_1", "smc_ndo_nno")],
                        0.25 * t4["deviation_mean"].loc[("paper_1", "smc_ndo_nno")])
@@ -419,7 +438,7 @@ def test_without_steady_state_columns_whole_run_is_used(mini_sweep, tmp_path):
         summary = json.loads((metrics.parent / "summary.json").read_text())
         summary.pop("digests")  # such jobs also predate the file digests of summary.json
         (metrics.parent / "summary.json").write_text(json.dumps(summary))
-    out = build_report(sweep)
+    out = build_report(sweep, figures=False)
     v = _read(out / "tables" / "verdicts.csv")
     assert set(v.loc[v["claim"] == "ranking", "metric"]) == {"deviation_mae"}
     assert "whole-run deviation MAE" in _section(_md(out), "Verdicts on the paper's claims")
@@ -439,6 +458,7 @@ def _write_bands(job: Path, seed_series: dict, spread: float = 1.0) -> None:
     _record_digests(job)
 
 
+@pytest.mark.slow  # draws figures
 def test_bands_are_drawn_when_present(mini_sweep, tmp_path):
     import matplotlib
 
@@ -517,6 +537,7 @@ def test_engine_bands_match_the_kept_seeds(mini_sweep):
         np.testing.assert_allclose(bands.p95[channel], lo + 0.95 * (hi - lo), atol=1e-9 * scale)
 
 
+@pytest.mark.slow  # draws figures
 def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path):
     """The forked path draws what the in-process path draws, and a failing figure fails the report."""
     from ddmr_cli.report import data as D
@@ -535,6 +556,7 @@ def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path)
         F._run_forked(data, tmp_path / "bad", styles, [("paper_1", "fig_nonexistent")], 1)
 
 
+@pytest.mark.slow  # draws figures
 def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
     """The paper's line: y against x; a circle: the lateral error against the distance travelled. A job on another
     reference than the line is reported under the scenario <scenario>@<trajectory>."""

@@ -11,15 +11,10 @@ import ddmr_cli.report
 from ddmr_cli.cli import main as cli
 
 
-def _fake_report(calls: list, with_margin: bool):
-    if with_margin:
-        def build_report(path, out=None, margin=None):
-            calls.append((path, out, margin))
-            return path
-    else:
-        def build_report(path, out=None):
-            calls.append((path, out))
-            return path
+def _fake_report(calls: list):
+    def build_report(path, out=None, margin=None, figures=True):
+        calls.append((path, out, margin, figures))
+        return path
     return build_report
 
 
@@ -39,11 +34,13 @@ def test_a_bad_margin_is_refused_before_running(tmp_path, monkeypatch, capsys):
 
 def test_margin_is_passed_through_when_the_report_takes_one(tmp_path, monkeypatch, capsys):
     calls: list = []
-    monkeypatch.setattr(ddmr_cli.report, "build_report", _fake_report(calls, with_margin=True))
+    monkeypatch.setattr(ddmr_cli.report, "build_report", _fake_report(calls))
     assert cli.main(["report", str(tmp_path), "--margin", "0.05"]) == 0
-    assert calls == [(tmp_path, None, "0.05")]
+    assert calls == [(tmp_path, None, "0.05", True)]
     assert cli.main(["report", str(tmp_path)]) == 0  # no margin given: the report's own default
-    assert len(calls[-1]) == 3 and calls[-1][2] is None
+    assert calls[-1][2] is None
+    assert cli.main(["report", str(tmp_path), "--no-figures"]) == 0  # tables and text only
+    assert calls[-1] == (tmp_path, None, None, False)
     launch = cli.prepare(["report.margin=0.05"], ["report.margin=0.05", "run.n_runs=1"], multirun=False)
     assert launch.margin == "0.05" and launch.report is False
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import catalogue
 import yaml
 from omegaconf import OmegaConf
 
@@ -55,7 +56,7 @@ def test_the_study_settings_are_the_same_for_every_controller():
 # --- bad input ------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("args, named", [
+@pytest.mark.parametrize("args, named", catalogue([
     (["+tune=nocontroller"], "tune=nocontroller: unknown tune"),
     (["+tune=pid", "tuning.n_trials=0"], "tuning.n_trials=0"),
     (["+tune=pid", "controller.kp=tag(log,interval(5,1))"], "empty or inverted range"),
@@ -65,7 +66,7 @@ def test_the_study_settings_are_the_same_for_every_controller():
     (["+tune=pid", "tuning.held_out.base_seed=5"], "overlap the tuning seeds"),
     (["+tune=smc", "objective=best"], "objective=best: unknown objective"),
     (["+tune=smc", "simulation.duration=2", "metrics.settle_time=2"], "metrics.settle_time=2.0: must be <"),
-])
+], fast=2))
 def test_bad_study_input_is_one_line_and_exit_2(tmp_path, capsys, args, named):
     out = tmp_path / "study"
     assert main(["run", "-m", *args, f"hydra.sweep.dir={out}"]) == 2

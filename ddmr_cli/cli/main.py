@@ -37,7 +37,8 @@ commands:
                             ddmr run -m +tune=smc_ndo                 # tune gains (Optuna); ddmr report it
                           add report=true to write the report when the run or sweep ends
   explain KEY [OVERRIDES] a config key's meaning, unit, value, valid range and docs/model.md section
-  report [PATH] [--out DIR] [--margin 0.1mm]  markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
+  report [PATH] [--out DIR] [--margin 0.1mm] [--no-figures]
+                          markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
                           (default PATH: the latest sweep under ./outputs)
   bench [--quick]         print engine and end-to-end performance figures for this machine
   sensitivity [--out DIR] [OVERRIDES]  the sensitivity of the paper's claims and the reading nearest its Table 4
@@ -302,7 +303,8 @@ def finish(launch: Launch) -> int:
     return status
 
 
-def write_report(path: Path, out: str | None, margin: float | None, failure: int = EXIT_USAGE) -> int:
+def write_report(path: Path, out: str | None, margin: float | None, failure: int = EXIT_USAGE,
+                 figures: bool = True) -> int:
     from ddmr_cli.errors import DDMRError
     from ddmr_cli.report import build_report
 
@@ -312,7 +314,7 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
         if tuning.is_tuning_dir(path):  # studies: held-out runs at paper and tuned gains, then their report
             written = tuning.build(path, out, margin)
         else:
-            written = build_report(path, out, **({"margin": margin} if margin is not None else {}))
+            written = build_report(path, out, figures=figures, **({"margin": margin} if margin is not None else {}))
     except (DDMRError, FileNotFoundError) as exc:
         print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return failure
@@ -584,6 +586,8 @@ def cmd_report(argv: list[str]) -> int:
                         help="practical margin of the verdicts: a length (0.1mm, the default; 1e-4 in metres) for "
                              "the metrics in metres, 5%% of the reference's mean for the others; or a percentage "
                              "(5%%) for every metric. A paired difference whose 95%% CI lies inside it is a tie")
+    parser.add_argument("--no-figures", action="store_true",
+                        help="write report.md and the tables only, without drawing the figures (much faster)")
     args = parser.parse_args(argv)
     from ddmr_cli.report.stats import Margin
 
@@ -598,7 +602,7 @@ def cmd_report(argv: list[str]) -> int:
             return _fail(f"path=(none): no sweep under {Path('outputs').resolve()}; give PATH or run ddmr run -m first")
         print(f"ddmr: reporting the latest sweep under ./outputs: {latest}", file=sys.stderr)
         path = latest
-    return write_report(Path(path), args.out, args.margin)
+    return write_report(Path(path), args.out, args.margin, figures=not args.no_figures)
 
 
 def cmd_sensitivity(argv: list[str]) -> int:

@@ -50,8 +50,9 @@ def nn_reading(params: dict) -> str | None:
 
 
 class Report:
-    def __init__(self, data: ReportData, out: Path, margin: Margin | None = None):
+    def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True):
         self.data, self.out, self.margin = data, out, margin or Margin()
+        self.draw_figures = draw_figures
         self.styles = StyleBook(j.controller for j in data.jobs)
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
@@ -344,6 +345,10 @@ class Report:
                 self.add(f"### {scenario}", "", T.md_segments(frame, scenario, kind), "")
 
     def figures(self) -> None:
+        if not self.draw_figures:
+            self.add("## Figures", "", "Not drawn (`ddmr report --no-figures`); the tables below hold every number.",
+                     "")
+            return
         figures, notes = make_figures(self.data, self.figures_dir, self.styles)
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
@@ -392,11 +397,11 @@ class Report:
         return self.out
 
 
-def build(path, out=None, margin=None) -> Path:
+def build(path, out=None, margin=None, figures: bool = True) -> Path:
     margin = Margin.parse(margin)
     data = load(path)
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return Report(data, out_dir, margin).build()
+    return Report(data, out_dir, margin, figures).build()
 
 
 __all__ = ["build", "Report", "Job"]
