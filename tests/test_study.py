@@ -14,7 +14,7 @@ from omegaconf import OmegaConf
 
 from ddmr_cli.cli.config import compose_config
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.study import analysis, claims, design
+from ddmr_cli.study import analysis, claims, design, search
 from ddmr_cli.study.space import Box, Parameter
 from ddmr_cli.study.task import study_configs
 
@@ -243,11 +243,13 @@ def test_share_of_box_and_calibration_pick():
 
 @pytest.mark.slow
 def test_quick_study_end_to_end(tmp_path):
-    """``ddmr sensitivity study=quick``: every stage runs as a sweep, the analyses and the report are written."""
+    """``ddmr sensitivity study=quick``: every stage runs as a sweep (the calibration search through Hydra's Optuna
+    sweeper, warm-started from the lhs stage), the analyses and the report are written; the search is the same
+    through another launcher, and resumes."""
     out = tmp_path / "study"
     proc = run_ddmr(["sensitivity", "--out", str(out), "study=quick", "launcher=basic"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    for stage in ("oat", "morris", "sobol", "map", "calibration", "points"):
+    for stage in ("oat", "morris", "sobol", "map", "lhs", "calibration", "points"):
         assert (out / stage / "study.csv").is_file(), stage
     morris = pd.read_csv(out / "morris" / "morris.csv")
     assert set(morris["claim"]) == set(claims.CLAIM_IDS) and (morris["mu_star"] >= 0).all()
@@ -255,14 +257,44 @@ def test_quick_study_end_to_end(tmp_path):
     assert {"S1", "S1_conf", "ST", "ST_conf"} <= set(sobol.columns)
     cal = json.loads((out / "calibration" / "calibration.json").read_text())
     assert len(cal["numbers"]) == 20 and cal["distance"] > 0
+    # the search: Optuna's trials, one study row each, numbered; the first is the lhs stage's best reading
+    trials = pd.read_csv(out / "calibration" / "study.csv")
+    assert list(trials["sample"]) == [0, 1, 2, 3] and list(trials["warm_start"]) == [1, 0, 0, 0]
+    assert (trials["runs"] == 4 * 2 * 10).all()
+    # what the sweeper was told: the row's capped distance, equal to the distance unless a number is 100x off
+    for row in trials.to_dict("records"):
+        assert row["objective"] == pytest.approx(search.objective(row), rel=1e-12)
+        assert row["objective"] <= row["distance"] * (1 + 1e-12)
+    assert cal["distance"] == pytest.approx(trials["distance"].min(), rel=1e-12)
+    assert [h["trial"] for h in cal["history"]] == [0, 1, 2, 3] and cal["warm_start"][0]["trial"] == 0
+    lhs = pd.read_csv(out / "lhs" / "study.csv")
+    best_lhs = lhs.loc[lhs["distance"].idxmin()]
+    for name in ("nn_learning_rate", "nn_width", "roughness_scale", "dt"):
+        assert trials.loc[0, name] == pytest.approx(best_lhs[name], rel=1e-12), name
+    assert (out / "lhs" / "holds.csv").is_file() and not (out / "calibration" / "holds.csv").exists()
     points = pd.read_csv(out / "points" / "study.csv")
     assert list(points["label"]) == ["faithful", "text_reading", "calibrated"]
     assert (points["runs"] == 4 * 2 * 50).all()
     report = (out / "report.md").read_text()
     assert "# Robustness of the paper's claims" in report and "Share of the box" in report
+    assert "Hydra's Optuna sweeper" in report and "**Conclusion: Table 4 is" in report
     for png in ("oat", "morris", "sobol", "nn_map", "calibration"):
         assert (out / "figures" / f"{png}.png").stat().st_size > 1000, png
     # resume: the same command again skips every job (complete, same config) and rewrites the report
     again = run_ddmr(["sensitivity", "--out", str(out), "--stages", "morris", "study=quick", "launcher=basic"],
                      cwd=tmp_path)
     assert again.returncode == 0 and "skipped" in again.stdout + again.stderr
+    # the search again, into another dir through the joblib launcher: the same trials and the same distances
+    other = tmp_path / "again"
+    proc = run_ddmr(["run", "-m", "+experiment=sensitivity_calibration", "study=quick", f"hydra.sweep.dir={other}",
+                     f"study.calibration.warm_start_from={out / 'lhs' / 'study.csv'}"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    same = pd.read_csv(other / "study.csv")
+    columns = ["nn_learning_rate", "nn_width", "roughness_scale", "dt", "distance", "objective", "warm_start"]
+    pd.testing.assert_frame_equal(same[columns], trials[columns], rtol=1e-12)
+    # and resumed: the same command with a larger budget runs only the new trials
+    proc = run_ddmr(["run", "-m", "+experiment=sensitivity_calibration", "study=quick", f"hydra.sweep.dir={other}",
+                     f"study.calibration.warm_start_from={out / 'lhs' / 'study.csv'}", "study.calibration.trials=5"],
+                    cwd=tmp_path)
+    assert proc.returncode == 0 and "resuming study calibration: 4/5 trials done" in proc.stdout + proc.stderr
+    assert list(pd.read_csv(other / "study.csv")["sample"]) == [0, 1, 2, 3, 4]

@@ -16,9 +16,11 @@ def main(cfg: DictConfig) -> float | list[float] | None:
 
         return run_trial(cfg)
     if cfg.get("study") is not None:  # a job of the sensitivity study (+experiment=sensitivity_*)
+        from ddmr_cli.study import search
         from ddmr_cli.study.task import execute_study
 
-        run_job(cfg, task=execute_study)
-        return None
+        summary = run_job(cfg, task=execute_study)
+        # a trial of the calibration search: its objective goes back to the Optuna sweeper
+        return search.objective_of(summary) if search.is_search(cfg) else None
     run_job(cfg)
     return None

@@ -126,12 +126,17 @@ def read_series(path: Path) -> dict[int, dict[str, np.ndarray]]:
     return out
 
 
+def read_json(path: Path) -> dict | None:
+    """A JSON file, or None when it is missing or cannot be read."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
 def read_summary(job_dir: Path) -> dict | None:
     """A job's summary, or None when it has none (not run, or killed before it finished)."""
     path = Path(job_dir) / SUMMARY
     if not path.is_file():
         return None
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
+    return read_json(path)

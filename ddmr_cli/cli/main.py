@@ -42,7 +42,8 @@ commands:
                           (default PATH: the latest sweep under ./outputs)
   bench [--quick]         print engine and end-to-end performance figures for this machine
   sensitivity [--out DIR] [OVERRIDES]  the sensitivity of the paper's claims and the reading nearest its Table 4
-                          (every stage a sweep; study=quick for the CI size; docs/model.md §11)
+                          (every stage a sweep, the calibration Hydra's Optuna sweeper; study=quick for the CI
+                          size; docs/model.md §11)
   --version               print the version
 """
 
@@ -149,7 +150,8 @@ class Launch:
     plan: tuple[dict, ...] = ()
     report: bool = False
     margin: float | None = None
-    study: bool = False
+    study: bool = False    # an Optuna study (a tuning study or the sensitivity study's calibration search)
+    search: bool = False   # the calibration search (ddmr_cli.study.search)
 
 
 def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: str = "config",
@@ -193,9 +195,13 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         except ValueError as exc:
             raise UsageError(f"report.margin={margin}: {exc}") from None
         from ddmr_cli.cli import tuning
+        from ddmr_cli.study import search
 
-        study = multirun and tuning.is_study(base)
-        session = tuning.prepare_study(base, overrides) if study else []  # checks; the rest of the budget
+        searching = multirun and search.is_search(base)  # the sensitivity study's calibration search (Optuna)
+        study = multirun and (tuning.is_study(base) or searching)
+        # checks; the rest of the budget
+        session = [] if not study else search.prepare_search(base) if searching else \
+            tuning.prepare_study(base, overrides)
         plan = [] if study else (sweep.plan_jobs(overrides, base) if multirun else
                                  [{"dir": "", "overrides": overrides}])
         if multirun and not study and not plan:
@@ -223,7 +229,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         raise UsageError(_missing_plugin(exc, overrides) or _explain(exc, overrides)) from None
     pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}", *session]
     return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin,
-                  study)
+                  study, searching)
 
 
 def _refuse_shared_dirs(plan: list[dict], subdir: list[str]) -> None:
@@ -280,7 +286,11 @@ def finish(launch: Launch) -> int:
     could not be written, or with a failed job, exits 1; a job's file-system fault is repeated as one line."""
     from ddmr_cli.cli import io, sweep
 
-    if launch.study:
+    if launch.search:
+        from ddmr_cli.study.search import finish as finish_search
+
+        status = finish_search(launch.out_dir)
+    elif launch.study:
         from ddmr_cli.cli.tuning import finish as finish_study
 
         status = finish_study(launch.out_dir)

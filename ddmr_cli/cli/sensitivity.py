@@ -1,9 +1,11 @@
 """``ddmr sensitivity``: the whole sensitivity study of the paper's claims (docs/model.md §11), stage after stage.
 
 Each stage is an ordinary ``ddmr run -m +experiment=sensitivity_<stage>`` sweep (same validation, launchers,
-resume and output dirs), into ``OUT/<stage>``; the driver only chains them: Morris's most influential parameters
-become the Sobol stage's (``study.sobol.parameters``), the calibration's best reading joins the ``points`` stage
-(50 seeds). Then it writes the report section (:mod:`ddmr_cli.report.sensitivity`) into ``OUT``.
+resume and output dirs), into ``OUT/<stage>``; the calibration stage's sweep is Hydra's Optuna sweeper
+(:mod:`ddmr_cli.study.search`). The driver only chains them: Morris's most influential parameters become the Sobol
+stage's (``study.sobol.parameters``), the ``lhs`` stage's table warm-starts the calibration search
+(``study.calibration.warm_start_from``), the calibration's best reading joins the ``points`` stage (50 seeds).
+Then it writes the report section (:mod:`ddmr_cli.report.sensitivity`) into ``OUT``.
 Extra arguments are overrides for every stage (``study=quick``, ``launcher=slurm cluster.partition=...``).
 """
 
@@ -16,7 +18,7 @@ import time
 from pathlib import Path
 from typing import Sequence
 
-STAGES = ("oat", "morris", "sobol", "map", "calibration", "points")
+STAGES = ("oat", "morris", "sobol", "map", "lhs", "calibration", "points")
 SUMMARY = "study_summary.json"
 
 
@@ -38,6 +40,11 @@ def stage_extra(stage: str, out: Path, overrides: list[str]) -> list[str]:
         cfg = compose_config(["+experiment=sensitivity_sobol", *overrides])
         names = top_parameters(out / "morris" / "morris.csv", int(cfg.study.morris.top))
         return [f"study.sobol.parameters=[{','.join(names)}]"]
+    lhs = out / "lhs" / "study.csv"
+    if stage == "calibration" and lhs.is_file():  # the search starts from the uniform sample's best readings
+        from ddmr_cli.cli.main import _override_value
+
+        return [f"study.calibration.warm_start_from={_override_value(lhs.resolve())}"]
     path = out / "calibration" / "calibration.json"
     if stage == "points" and path.is_file() and json.loads(path.read_text()).get("distance") is not None:
         return ["study.calibrated=true"]
@@ -49,8 +56,9 @@ def main(argv: Sequence[str]) -> int:
 
     parser = argparse.ArgumentParser(
         prog="ddmr sensitivity", description="Sensitivity of the paper's claims to its unspecified constants and "
-        "the reading nearest its Table 4 (docs/model.md §11): OAT curves, Morris, Sobol, the NN map, calibration, "
-        "then the report. Each stage is a `ddmr run -m +experiment=sensitivity_<stage>` sweep into OUT/<stage>.")
+        "the reading nearest its Table 4 (docs/model.md §11): OAT curves, Morris, Sobol, the NN map, the share of the "
+        "box (Latin hypercube), the calibration search (Optuna), then the report. Each stage is a "
+        "`ddmr run -m +experiment=sensitivity_<stage>` sweep into OUT/<stage>.")
     parser.add_argument("--out", default=None, help="study dir (default: outputs/sensitivity/<time>)")
     parser.add_argument("--stages", default=",".join(STAGES),
                         help=f"comma-separated stages to run, in this order: {','.join(STAGES)}")

@@ -339,15 +339,24 @@ def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
     Raises ConfigError on a bad setting, or when the sweep dir holds a study of another config."""
     check_study(cfg, overrides)
     sweep_dir = Path(str(cfg.hydra.sweep.dir))
-    budget, seed, done = int(cfg.tuning.n_trials), int(cfg.tuning.seed), 0
+    budget, seed = int(cfg.tuning.n_trials), int(cfg.tuning.seed)
     info = read_study_info(sweep_dir)
     digest = study_hash(cfg, overrides)
     if info is not None and info.get("hash") != digest:
         raise ConfigError("hydra.sweep.dir", str(sweep_dir), f"holds a study of another config (hash {info.get('hash')}"
                           f", this one {digest}); choose another hydra.sweep.dir or remove it")
-    if (sweep_dir / STORAGE_FILE).is_file():
+    return session_overrides(sweep_dir, str(cfg.hydra.sweeper.study_name), budget, seed)
+
+
+def session_overrides(sweep_dir: Path, study_name: str, budget: int, seed: int) -> list[str]:
+    """The Hydra overrides of a session of the Optuna study ``study_name`` stored in ``sweep_dir`` (none yet, or
+    resumed): trials a killed session left RUNNING marked failed, then the rest of the budget
+    (``hydra.sweeper.n_trials``) with the sampler seeded ``seed + trials done`` (docs/model.md §9, "Storage and
+    resumption"). Shared by the gain tuning and the sensitivity study's calibration search (§11)."""
+    done = 0
+    if (Path(sweep_dir) / STORAGE_FILE).is_file():
         try:
-            study = load_study(sweep_dir, str(cfg.hydra.sweeper.study_name))
+            study = load_study(sweep_dir, study_name)
         except KeyError:  # a storage without this study
             study = None
         if study is not None:
@@ -363,17 +372,9 @@ def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
 # --- the study's files ----------------------------------------------------------------------------------------
 
 
-def _read_json(path: Path) -> dict | None:
-    """A JSON file, or None when it is missing or cannot be read."""
-    try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-
-
 def read_study_info(sweep_dir: Path) -> dict | None:
     """A study dir's ``tuning.json``, or None."""
-    return _read_json(Path(sweep_dir) / STUDY_FILE)
+    return io.read_json(Path(sweep_dir) / STUDY_FILE)
 
 
 def _task_overrides(config: DictConfig) -> list[str]:
@@ -386,13 +387,13 @@ def trial_dirs(sweep_dir: Path) -> list[tuple[frozenset, Path, dict]]:
     """Every trial dir with a ``trial.json``: its job's overrides (the sampled gains and the fixed ones), dir, record."""
     out = []
     for path in sorted((Path(sweep_dir) / TRIALS_DIR).glob(f"*/{TRIAL_FILE}")):
-        record = _read_json(path)
+        record = io.read_json(path)
         if record is not None:
             out.append((frozenset(record.get("overrides", [])), path.parent, record))
     return out
 
 
-def _trial_record(records, params: dict) -> tuple[Path | None, dict]:
+def trial_record(records, params: dict) -> tuple[Path | None, dict]:
     """The dir and record of the job the sweeper launched with these sampled values (its overrides hold them as
     the sweeper wrote them, ``key=repr(value)``)."""
     wanted = {f"{k}={v}" for k, v in params.items()}
@@ -407,7 +408,7 @@ def trials_table(sweep_dir: Path, study) -> "pd.DataFrame":
     records = trial_dirs(sweep_dir)
     rows = []
     for t in study.get_trials(deepcopy=False):
-        job_dir, rec = _trial_record(records, t.params)
+        job_dir, rec = trial_record(records, t.params)
         row = {"number": t.number, "state": t.state.name, "killed": bool(t.user_attrs.get("killed", False))}
         values = t.values or []
         row.update({f"value_{i}": v for i, v in enumerate(values)})
@@ -494,7 +495,7 @@ def finish(sweep_dir: Path) -> int:
 
 
 __all__ = ["OBJECTIVE_METRIC", "TrialOutcome", "evaluate_gains", "run_trial", "search_space", "check_study",
-           "prepare_study", "study_hash", "load_study", "trials_table", "write_tables", "StudyCallback", "finish",
+           "prepare_study", "session_overrides", "study_hash", "load_study", "trials_table", "write_tables", "StudyCallback", "finish",
            "is_study", "scenario_config"]
 
 

@@ -1,8 +1,9 @@
 """The report of a sensitivity study dir (``ddmr sensitivity``; docs/model.md §11): "Robustness of the paper's
 claims" (per claim: the share of the box where it holds, the parameters it depends on most, Sobol indices), the
-calibration against Table 4, the figures (OAT curves, Morris, Sobol, the NN map, calibration residuals) and the
-cost. Reads each stage's sweep dir, ``OUT/<stage>`` (``study.csv`` and the analyses of
-:mod:`ddmr_cli.study.analysis`); stages that did not run are left out with a note.
+calibration against Table 4 (the Optuna search, :mod:`ddmr_cli.study.search`), the figures (OAT curves, Morris,
+Sobol, the NN map, calibration residuals and search history) and the cost. Reads each stage's sweep dir,
+``OUT/<stage>`` (``study.csv`` and the analyses of :mod:`ddmr_cli.study.analysis`); stages that did not run are left
+out with a note.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def _study_config(stage_dir: Path):
 def _box_and_faithful(out: Path):
     from ddmr_cli.study.task import study_setup
 
-    for stage in ("oat", "morris", "calibration", "sobol", "map", "points"):
+    for stage in ("oat", "morris", "lhs", "calibration", "sobol", "map", "points"):
         cfg = _study_config(out / stage)
         if cfg is not None:
             box, _, faithful, _ = study_setup(cfg, out / stage)
@@ -168,9 +169,26 @@ def sobol_figure(table: "pd.DataFrame", path: Path) -> Path:
 
 
 def calibration_figure(result: dict, path: Path) -> Path:
+    """The residual per Table 4 number at the best reading and, for a search, its history: each trial's distance,
+    the best so far, the warm-start trials marked."""
     plt = pyplot()
     numbers = result["numbers"]
-    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    history = result.get("history") or []
+    if history:
+        fig, (ax, hx) = plt.subplots(1, 2, figsize=(12.5, 4.2), gridspec_kw={"width_ratios": [3, 2]})
+        trials = [h["trial"] for h in history]
+        hx.plot(trials, [h["objective"] for h in history], "o", ms=3, color=OKABE_ITO["sky_blue"], label="trial")
+        hx.step(trials, [h["best"] for h in history], where="post", color=OKABE_ITO["vermillion"], label="best so far")
+        warm = [w["trial"] for w in result.get("warm_start") or []]
+        if warm:
+            hx.plot(warm, [h["objective"] for h in history if h["trial"] in warm], "D", ms=6, mfc="none", mec="k",
+                    ls="none", label="warm start (lhs best)")
+        hx.set_xlabel("trial")
+        hx.set_ylabel("distance to Table 4 (RMS log ratio, capped)")
+        hx.set_title("Optuna TPE search", fontsize=9)
+        hx.legend(fontsize=7)
+    else:
+        fig, ax = plt.subplots(figsize=(7.5, 4.2))
     labels = [n["number"].removeprefix("t4:") for n in numbers]
     values = [n["log_ratio"] for n in numbers]
     ax.barh(labels, values, color=[OKABE_ITO["blue"] if v >= 0 else OKABE_ITO["vermillion"] for v in values])
@@ -224,10 +242,11 @@ def write_report(out: Path) -> Path:
     out = Path(out)
     fig_dir = out / FIGURES
     box, faithful = _box_and_faithful(out)
-    stage = {s: _read_csv(out / s / "study.csv") for s in ("oat", "morris", "sobol", "map", "calibration", "points")}
+    stage = {s: _read_csv(out / s / "study.csv") for s in ("oat", "morris", "sobol", "map", "lhs", "calibration",
+                                                            "points")}
     morris = _read_csv(out / "morris" / analysis.MORRIS_CSV)
     sobol = _read_csv(out / "sobol" / analysis.SOBOL_CSV)
-    holds = _read_csv(out / "calibration" / analysis.HOLDS_CSV)
+    holds = _read_csv(out / "lhs" / analysis.HOLDS_CSV)
     cal_path = out / "calibration" / analysis.CALIBRATION_JSON
     calibration = json.loads(cal_path.read_text()) if cal_path.is_file() else None
     summary_path = out / "study_summary.json"
@@ -250,13 +269,20 @@ def write_report(out: Path) -> Path:
             (points["label"] == "faithful").any() else "OAT stage"
         seeds_note.append(f"The faithful reading's statistics come from the {src}.")
     lines += ["## Per claim", "", *claim_table(holds, morris, sobol, faithful_row), "",
-              "Share of the box: over the calibration stage's Latin hypercube (uniform on the box's axes, log axes "
-              "where marked), with a Wilson 95 % interval; a sample whose runs all diverged counts as not holding. "
+              "Share of the box: over the lhs stage's Latin hypercube (uniform on the box's axes, log axes where "
+              "marked), with a Wilson 95 % interval; a sample whose runs all diverged counts as not holding. "
               "Top 3: Morris mu* over the whole box. ST: Sobol total indices over the Sobol stage's parameters "
-              "(the others faithful). " + " ".join(seeds_note), ""]
+              f"(the others faithful). Morris and Sobol take each statistic clipped to ±{analysis.CLIP:g} % "
+              "(a reduction is at most 100 %; below -100 % every claim is equally false, and a diverging NN's "
+              "-10^4 % would carry the whole variance). " + " ".join(seeds_note), ""]
     if morris is not None and "replaced" in morris and morris["replaced"].max() > 0:
         lines += [f"({int(morris['replaced'].max())} Morris samples had a NaN statistic, set to the median for "
                   f"the estimator.)", ""]
+    for name, table in (("Morris", morris), ("Sobol", sobol)):
+        if table is not None and "clipped" in table and table["clipped"].max() > 0:
+            per = table.groupby("claim", sort=False)["clipped"].max()
+            lines += [f"({name} samples clipped to ±{analysis.CLIP:g} %: "
+                      + ", ".join(f"{c} {int(n)}" for c, n in per.items() if n) + ".)", ""]
     if sobol is not None:
         lines += ["### Sobol indices", "", md_table(["Claim", "Parameter", "S1", "S1 95 % CI", "ST", "ST 95 % CI"],
                   [[r.claim, r.parameter, _fmt(r.S1, 2), f"± {_fmt(r.S1_conf, 2)}", _fmt(r.ST, 2),
@@ -276,7 +302,9 @@ def write_report(out: Path) -> Path:
     lines += ["## Calibration: the reading nearest the paper's Table 4", ""]
     if calibration is not None and calibration.get("distance") is not None:
         figures.append(("Calibration residuals", calibration_figure(calibration, fig_dir / "calibration.png")))
-        lines += calibration_lines(calibration, faithful, points)
+        search_path = out / "calibration" / "search.json"
+        search = json.loads(search_path.read_text()) if search_path.is_file() else None
+        lines += calibration_lines(calibration, faithful, points, search, _study_config(out / "calibration"))
     else:
         lines += ["(the calibration stage did not run or had no usable sample)", ""]
     lines += ["## Figures", ""] + [f"### {title}\n\n![{title}]({p.relative_to(out)})\n" for title, p in figures]
@@ -292,18 +320,54 @@ def write_report(out: Path) -> Path:
     return io.write_text(out / REPORT, "\n".join(lines))
 
 
-def calibration_lines(result: dict, faithful: dict | None, points: "pd.DataFrame | None") -> list[str]:
+#: Table 4 counts as reproduced at a reading when every number is within this factor of the paper's
+REPRODUCED_FACTOR = 1.5
+
+
+def verdict(result: dict) -> str:
+    """The plain conclusion of a calibration: reproduced (every number within :data:`REPRODUCED_FACTOR`) or not."""
+    worst = max(result["numbers"], key=lambda n: abs(n["log_ratio"]) if math.isfinite(n["log_ratio"]) else math.inf)
+    factor = math.exp(abs(worst["log_ratio"])) if math.isfinite(worst["log_ratio"]) else math.inf
+    name = worst["number"].removeprefix("t4:")
+    if factor <= REPRODUCED_FACTOR:
+        return (f"**Conclusion: Table 4 is reproducible within the box**, every number within a factor "
+                f"{factor:.2f} of the paper's (worst: {name}).")
+    return (f"**Conclusion: Table 4 is not reproducible within the box**: at the nearest reading a typical number "
+            f"is off by a factor {math.exp(result['distance']):.2f} and the worst ({name}) by {factor:.2f} "
+            f"(reproduced would mean every number within {REPRODUCED_FACTOR:g}x).")
+
+
+def calibration_lines(result: dict, faithful: dict | None, points: "pd.DataFrame | None", search: dict | None = None,
+                      cfg=None) -> list[str]:
     reading = result["reading"]
     changed = {k: v for k, v in reading.items() if faithful is None or faithful.get(k) != v}
     d = result["distance"]
-    lines = [f"Searched: {result['usable']} usable of {result['samples']} Latin-hypercube samples of the whole box "
-             f"(the tuning branch's Optuna sweeper had not landed). Distance = RMS over the 20 numbers of "
-             f"log(ours / paper). Best: **{d:.3f}**, i.e. a typical number off by a factor "
-             f"**{math.exp(d):.2f}** (median over the box {result['distance_median']:.3f}).", "",
+    seeds = f" at {int(cfg.run.n_runs)} seeds" if cfg is not None else ""
+    if search is not None:
+        sessions = search.get("sessions") or [{}]
+        how = (f"Searched by Hydra's Optuna sweeper (TPE sampler seeded {sessions[0].get('sampler_seed')}, "
+               f"{sessions[0].get('batch', '?')} trials at a time) over the box's {len(search.get('parameters', []))} "
+               f"global parameters: {result['usable']} usable of {result['samples']} trials{seeds}, each a sample as "
+               f"any other (4 controllers x 2 scenarios).")
+        warm = result.get("warm_start") or []
+        if warm:
+            best_warm = min(w["distance"] for w in warm)
+            first = "trial was the lhs stage's best reading" if len(warm) == 1 else \
+                f"{len(warm)} trials were the lhs stage's best readings"
+            how += (f" The first {first} (warm start); re-evaluated{seeds}, the best of them scores "
+                    f"{best_warm:.3f}, so the search "
+                    + (f"improved on the uniform sample by {best_warm - d:.3f}." if best_warm > d else
+                       "found nothing better than the uniform sample."))
+    else:
+        how = f"Searched: {result['usable']} usable of {result['samples']} samples of the box{seeds}."
+    lines = [how + f" Distance = RMS over the 20 numbers of log(ours / paper). Best: **{d:.3f}**, i.e. a typical "
+             f"number off by a factor **{math.exp(d):.2f}** (median over the trials {result['distance_median']:.3f}).",
+             "",
              "Best reading: " + ", ".join(f"`{k}={_fmt(v, 4)}`" for k, v in changed.items()), "",
              md_table(["Table 4 number", "Paper", "Ours (best reading)", "Ours / paper", "log ratio"],
                       [[n["number"].removeprefix("t4:"), _fmt(n["paper"], 3), _fmt(n["ours"], 3),
                         _fmt(n["ratio"], 3), _fmt(n["log_ratio"], 2)] for n in result["numbers"]]), "",
+             verdict(result), "",
              md_table(["Claim at the best reading", "Statistic (%)", "Rule", "Holds"],
                       [[cid, _fmt(c["statistic"], 3), c["rule"], "yes" if c["holds"] else "no"]
                        for cid, c in result["claims"].items()]), ""]
@@ -318,5 +382,5 @@ def calibration_lines(result: dict, faithful: dict | None, points: "pd.DataFrame
     return lines
 
 
-__all__ = ["write_report", "oat_figure", "map_figure", "morris_figure", "sobol_figure", "calibration_figure",
+__all__ = ["write_report", "verdict", "oat_figure", "map_figure", "morris_figure", "sobol_figure", "calibration_figure",
            "claim_table"]

@@ -27,16 +27,25 @@ HOLDS_CSV = "holds.csv"
 CALIBRATION_JSON = "calibration.json"
 
 
-def outputs(rows: "pd.DataFrame", claim: str) -> tuple[np.ndarray, int]:
-    """A claim statistic per sample, NaN (a failed or diverged sample) replaced by the median of the others
-    (SALib's estimators need every sample); returns the values and how many were replaced."""
+#: bound [%] of a claim statistic in the global analyses (docs/model.md §11): a reduction is at most 100 % (the
+#: candidate at zero); below -100 % (the candidate more than twice as bad) every claim is equally false, and an NN
+#: that blows up (-10^4 %) would otherwise carry the whole variance Morris and Sobol apportion
+CLIP = 100.0
+
+
+def outputs(rows: "pd.DataFrame", claim: str) -> tuple[np.ndarray, int, int]:
+    """A claim statistic per sample as the global analyses take it: clipped to +-:data:`CLIP`, NaN (a failed or
+    diverged sample) replaced by the median of the others (SALib's estimators need every sample); returns the
+    values, how many were replaced and how many clipped."""
     y = rows[claim].to_numpy(float) if claim in rows else np.full(len(rows), np.nan)
     bad = ~np.isfinite(y)
     if bad.all():
-        return np.zeros_like(y), int(bad.sum())
+        return np.zeros_like(y), int(bad.sum()), 0
     y = y.copy()
+    clipped = int(np.sum(np.abs(y[~bad]) > CLIP))
+    y[~bad] = np.clip(y[~bad], -CLIP, CLIP)
     y[bad] = float(np.median(y[~bad]))
-    return y, int(bad.sum())
+    return y, int(bad.sum()), clipped
 
 
 def _aligned(rows: "pd.DataFrame", design: Design) -> "pd.DataFrame":
@@ -49,32 +58,34 @@ def _aligned(rows: "pd.DataFrame", design: Design) -> "pd.DataFrame":
 
 
 def morris(rows: "pd.DataFrame", design: Design, levels: int, seed: int) -> "pd.DataFrame":
-    """Per claim and parameter: mu, mu*, its 95 % CI half-width, sigma (SALib ``morris.analyze``)."""
+    """Per claim and parameter: mu, mu*, its 95 % CI half-width, sigma (SALib ``morris.analyze``) of the clipped
+    statistic (:func:`outputs`)."""
     import pandas as pd
     from SALib.analyze import morris as morris_analyze
 
     rows = _aligned(rows, design)
     out = []
     for claim in claim_stats.CLAIM_IDS:
-        y, replaced = outputs(rows, claim)
+        y, replaced, clipped = outputs(rows, claim)
         res = morris_analyze.analyze(problem(design.names), design.unit, y, num_levels=levels, seed=seed,
                                      print_to_console=False)
         for i, name in enumerate(design.names):
             out.append({"claim": claim, "parameter": name, "mu": res["mu"][i], "mu_star": res["mu_star"][i],
-                        "mu_star_conf": res["mu_star_conf"][i], "sigma": res["sigma"][i], "replaced": replaced})
+                        "mu_star_conf": res["mu_star_conf"][i], "sigma": res["sigma"][i], "replaced": replaced,
+                        "clipped": clipped})
     return pd.DataFrame(out)
 
 
 def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "pd.DataFrame":
     """Per claim and parameter: first-order S1 and total ST with 95 % CI half-widths (SALib ``sobol.analyze``,
-    bootstrap)."""
+    bootstrap) of the clipped statistic (:func:`outputs`)."""
     import pandas as pd
     from SALib.analyze import sobol as sobol_analyze
 
     rows = _aligned(rows, design)
     out = []
     for claim in claim_stats.CLAIM_IDS:
-        y, replaced = outputs(rows, claim)
+        y, replaced, clipped = outputs(rows, claim)
         if np.ptp(y) <= 0:  # a constant statistic: no variance to apportion
             res = {k: np.full(len(design.names), np.nan) for k in ("S1", "S1_conf", "ST", "ST_conf")}
         else:
@@ -82,7 +93,7 @@ def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "p
                                         conf_level=0.95, seed=seed, print_to_console=False)
         for i, name in enumerate(design.names):
             out.append({"claim": claim, "parameter": name, "S1": res["S1"][i], "S1_conf": res["S1_conf"][i],
-                        "ST": res["ST"][i], "ST_conf": res["ST_conf"][i], "replaced": replaced})
+                        "ST": res["ST"][i], "ST_conf": res["ST_conf"][i], "replaced": replaced, "clipped": clipped})
     return pd.DataFrame(out)
 
 
@@ -98,7 +109,7 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def holds(rows: "pd.DataFrame") -> "pd.DataFrame":
     """Per claim: the share of samples where it holds (failed samples count as not holding), with a 95 %
-    Wilson interval, and the median of its statistic. On the calibration's Latin hypercube this is the share of
+    Wilson interval, and the median of its statistic. On the ``lhs`` stage's Latin hypercube this is the share of
     the box."""
     import pandas as pd
 
@@ -115,7 +126,8 @@ def holds(rows: "pd.DataFrame") -> "pd.DataFrame":
 
 
 def calibration(rows: "pd.DataFrame", names: Sequence[str]) -> dict:
-    """The sample nearest the paper's Table 4: its reading, distance, residual per number, claims."""
+    """The sample nearest the paper's Table 4: its reading, distance, residual per number, claims; for the
+    search's trials (an ``objective`` column) also the best so far per trial and the warm-start trials."""
     ok = rows[np.isfinite(rows["distance"].to_numpy(float))] if "distance" in rows else rows.iloc[:0]
     if ok.empty:
         return {"samples": len(rows), "usable": 0, "distance": None}
@@ -123,10 +135,18 @@ def calibration(rows: "pd.DataFrame", names: Sequence[str]) -> dict:
     ours = {k: float(best[k]) for k in claim_stats.paper_table4()}
     residuals = claim_stats.log_residuals(ours)
     paper = claim_stats.paper_table4()
+    search = {}
+    if "objective" in rows:  # the Optuna search: its best so far per trial, and its warm start
+        objective = rows["objective"].to_numpy(float)
+        search["history"] = [{"trial": int(t), "objective": float(v), "best": float(b)} for t, v, b in
+                             zip(rows["sample"], objective, np.minimum.accumulate(objective))]
+        warm = ok[ok["warm_start"] == 1] if "warm_start" in ok else ok.iloc[:0]
+        search["warm_start"] = [{"trial": int(r["sample"]), "distance": float(r["distance"])}
+                                for _, r in warm.iterrows()]
     return {
         "samples": len(rows), "usable": len(ok), "distance": float(best["distance"]),
         "distance_median": float(ok["distance"].median()),
-        "sample": int(best["sample"]),
+        "sample": int(best["sample"]), **search,
         "reading": {n: _scalar(best[n]) for n in names},
         "numbers": [{"number": k, "paper": paper[k], "ours": ours[k], "log_ratio": residuals[k],
                      "ratio": math.exp(residuals[k]) if np.isfinite(residuals[k]) else math.nan} for k in paper],
@@ -161,7 +181,7 @@ def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
         io.write_csv(sweep_dir / SOBOL_CSV, table)
         for claim, part in table.groupby("claim", sort=False):
             lines.append(f"sobol {claim} ST: " + ", ".join(f"{r.parameter} {r.ST:.2f}" for r in part.itertuples()))
-    if design.stage in ("calibration", "morris", "sobol"):
+    if design.stage in ("lhs", "morris", "sobol"):
         table = holds(rows)
         io.write_csv(sweep_dir / HOLDS_CSV, table)
         lines += [f"{r.claim} holds in {r.holds}/{r.samples} samples" for r in table.itertuples()]
@@ -169,10 +189,10 @@ def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
         result = calibration(rows, box.global_names())
         io.write_text(sweep_dir / CALIBRATION_JSON, json.dumps(result, indent=2))
         if result["distance"] is not None:
-            lines.append(f"calibration: best distance {result['distance']:.3f} (RMS log ratio) at sample "
+            lines.append(f"calibration: best distance {result['distance']:.3f} (RMS log ratio) at trial "
                          f"{result['sample']}")
     return lines
 
 
 __all__ = ["morris", "sobol", "holds", "calibration", "analyse", "outputs", "wilson", "MORRIS_CSV", "SOBOL_CSV",
-           "HOLDS_CSV", "CALIBRATION_JSON"]
+           "HOLDS_CSV", "CALIBRATION_JSON", "CLIP"]

@@ -7,7 +7,9 @@ hypercube on the unit cube; :meth:`~ddmr_cli.study.space.Parameter.from_unit` ma
 
 Stages: ``oat`` (each parameter over its grid, the others faithful), ``morris`` (screening of every global
 parameter), ``sobol`` (the parameters ``study.sobol.parameters``, the others faithful), ``map`` (a grid over
-two parameters), ``calibration`` (Latin hypercube over the global box), ``points`` (named readings).
+two parameters), ``lhs`` (Latin hypercube over the global box: uniform, for the share of the box where each
+claim holds), ``calibration`` (one trial of the Optuna search, :mod:`ddmr_cli.study.search`: the reading
+``study.reading`` the sweeper sampled), ``points`` (named readings).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.study.space import Box
 
-STAGES = ("oat", "morris", "sobol", "map", "calibration", "points")
+STAGES = ("oat", "morris", "sobol", "map", "lhs", "calibration", "points")
 
 
 @dataclass
@@ -101,7 +103,7 @@ def latin(box: Box, faithful: Mapping[str, Any], samples: int, seed: int) -> Des
 
     names = box.global_names()
     unit = latin_sample.sample(problem(names), N=samples, seed=seed)
-    return _from_unit(box, names, unit, faithful, "calibration")
+    return _from_unit(box, names, unit, faithful, "lhs")
 
 
 def points(box: Box, faithful: Mapping[str, Any], readings: Mapping[str, Mapping[str, Any]]) -> Design:
@@ -133,8 +135,12 @@ def build(study, box: Box, faithful: Mapping[str, Any], sweep_dir=None) -> Desig
         return sobol(box, faithful, [str(n) for n in study.sobol.parameters], int(study.sobol.base), seed)
     if stage == "map":
         return grid_map(box, faithful, str(study.map.x), str(study.map.y), int(study.map.levels))
-    if stage == "calibration":
-        return latin(box, faithful, int(study.calibration.samples), seed)
+    if stage == "lhs":
+        return latin(box, faithful, int(study.lhs.samples), seed)
+    if stage == "calibration":  # one trial of the search: the sampled reading, the rest faithful
+        from ddmr_cli.study.search import reading_of
+
+        return Design("calibration", box.global_names(), [{**faithful, **reading_of(study, full)}], ["trial"], None)
     if stage == "points":
         readings = OmegaConf.to_container(study.points, resolve=True)
         if study.get("calibrated"):

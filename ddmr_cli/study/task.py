@@ -28,6 +28,7 @@ from omegaconf import DictConfig
 from ddmr_cli.cli import io, jobdir
 from ddmr_cli.cli.sweep import SweepAggregator, _shutdown_joblib_workers, read_state
 from ddmr_cli.study import claims as claim_stats
+from ddmr_cli.study import search
 from ddmr_cli.study.design import Design, build, chunk_of
 from ddmr_cli.study.space import Box
 
@@ -136,12 +137,14 @@ def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None
             log.info("study %s chunk %s: %d/%d samples, %.1f s", design.stage, cfg.study.chunk, count + 1,
                      len(indices), time.perf_counter() - started)
     wall = time.perf_counter() - started
+    # a trial of the calibration search: what goes back to the Optuna sweeper
+    extra = {"objective": search.objective(rows[0])} if design.stage == search.STAGE else {}
     summary = {
         "status": "complete", "controller": "study", "scenario": design.stage, "overrides": overrides or [],
         "config_hash": digest or config_hash(cfg), "stage": design.stage, "samples": len(indices),
         "samples_failed": failed, "design_size": len(design.samples),
         "seeds": [seeds[0], seeds[-1]], "statistics": {"runs": n_runs, "diverged": n_diverged},
-        "wall_time": wall,
+        "wall_time": wall, **extra,
     }
     # staged and moved in with the summary (and every file's digest) last, as any job (cli/jobdir.py)
     with jobdir.Stage(out) as stage:
@@ -153,19 +156,26 @@ def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None
 
 
 def collect(sweep_dir: Path) -> "pd.DataFrame":
-    """Every complete job's rows of a study sweep dir, by sample index."""
+    """Every complete job's rows of a study sweep dir, by sample index (``job``: the job dir's name)."""
     import pandas as pd
 
     state = read_state(Path(sweep_dir))
-    frames = [pd.read_csv(d / STUDY_ROWS) for d, s in state.complete if (d / STUDY_ROWS).is_file()]
+    frames = [pd.read_csv(d / STUDY_ROWS).assign(job=d.name) for d, _ in state.complete
+              if (d / STUDY_ROWS).is_file()]
     if not frames:
         return pd.DataFrame()
     return pd.concat(frames, ignore_index=True).sort_values("sample", kind="mergesort").reset_index(drop=True)
 
 
 class StudyAggregator(SweepAggregator):
-    """Hydra callback of the study presets: the sweep plan at the start; ``study.csv`` and the stage's analysis
-    at the end."""
+    """Hydra callback of the study presets: the sweep plan at the start (the calibration search: its record and
+    warm start, :func:`ddmr_cli.study.search.start_session`); ``study.csv`` and the stage's analysis at the end."""
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        if search.is_search(config):  # the Optuna sweeper plans nothing ahead: the search's own record instead
+            search.start_session(config)
+        else:
+            super().on_multirun_start(config, **kwargs)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         from ddmr_cli.study.analysis import analyse
@@ -173,6 +183,9 @@ class StudyAggregator(SweepAggregator):
         sweep_dir = Path(config.hydra.sweep.dir)
         state = read_state(sweep_dir)
         rows = collect(sweep_dir)
+        if search.is_search(config):  # one row per complete trial, numbered as Optuna's trials
+            search.end_session(sweep_dir)
+            rows = search.trial_rows(sweep_dir, rows, state.complete)
         io.write_csv(sweep_dir / STUDY_CSV, rows)
         runs = int(sum(s.get("statistics", {}).get("runs", 0) or 0 for _, s in state.complete))
         wall = sum(float(s.get("wall_time") or 0) for _, s in state.complete)
