@@ -281,3 +281,31 @@ def test_new_cli_modules_hold_no_mutable_state(module):
              if not name.startswith("__") and not isinstance(value, (types.ModuleType, types.FunctionType, type))
              and (value is None or isinstance(value, (list, dict, set)))}
     assert state == {}
+
+
+# --- the reaper ----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="the reaper reads /proc (Linux)")
+def test_the_reaper_ends_workers_and_leaves_the_resource_trackers(tmp_path):
+    """After a sweep the reaper ends every process marked with the run's DDMR_PARENT, except resource trackers:
+    those are the parent's own (a later sweep of the same process, `ddmr sensitivity`, still uses them)."""
+    import subprocess
+    import sys
+
+    from ddmr_cli.cli import reaper
+
+    env = {**os.environ, "DDMR_PARENT": "test-host:999999999"}
+    sleeper = "import time; time.sleep(60)"
+    worker = subprocess.Popen([sys.executable, "-c", sleeper], env=env)
+    tracker = subprocess.Popen([sys.executable, "-c", f"{sleeper}  # multiprocessing.resource_tracker"], env=env)
+    other = subprocess.Popen([sys.executable, "-c", sleeper])  # not this run's
+    try:
+        ended = reaper.reap(999999999, "test-host", grace=0.5)
+        assert ended == [worker.pid]
+        assert worker.wait(timeout=5) != 0
+        assert tracker.poll() is None and other.poll() is None
+    finally:
+        for proc in (worker, tracker, other):
+            proc.kill()
+            proc.wait()

@@ -4,7 +4,11 @@
 session of its own, its stdin a pipe only ``ddmr run`` holds. When that pipe closes (``ddmr run`` ended or was
 killed), the reaper ends every process whose environment carries ``DDMR_PARENT=HOST:PID`` (the joblib/loky and
 submitit_local workers of that run inherited it): SIGTERM, then SIGKILL after 2 s. Idle loky workers would
-otherwise wait out their 300 s idle timeout, and busy ones finish their job, after their parent died.
+otherwise wait out their 300 s idle timeout, and busy ones finish their job, after their parent died. The resource
+trackers (multiprocessing's and loky's) carry the entry too but are left alone: they are the parent's, not
+workers; they end by themselves when it does, after unlinking what it leaked, and a process that runs several
+sweeps (``ddmr sensitivity``) keeps using them. Killing them printed KeyError tracebacks from the relaunched
+tracker at every later stage.
 Inside a job, :func:`ddmr_cli.cli.app._exit_with_parent` does the same for busy workers where /proc is missing.
 """
 
@@ -16,15 +20,22 @@ import sys
 import time
 
 
+#: a process whose command line holds this is a resource tracker, not a worker (module docstring)
+TRACKER = b"resource_tracker"
+
+
 def workers(mark: bytes, exclude: int) -> list[int]:
-    """Pids of the processes whose environment holds the entry ``mark``."""
+    """Pids of the processes whose environment holds the entry ``mark``, resource trackers excepted."""
     found = []
     for name in os.listdir("/proc") if os.path.isdir("/proc") else []:
         if not name.isdigit() or int(name) == exclude:
             continue
         try:
             with open(f"/proc/{name}/environ", "rb") as fh:
-                if mark in fh.read().split(b"\0"):
+                if mark not in fh.read().split(b"\0"):
+                    continue
+            with open(f"/proc/{name}/cmdline", "rb") as fh:
+                if TRACKER not in fh.read():
                     found.append(int(name))
         except OSError:
             continue
