@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from paper import make_smc, make_pid, make_robot, make_simulation, make_terrain
 from ddmr_cli import PID, SMC, NonlinearDisturbanceObserver, Robot, Simulation, Terrain, TerrainZone, simulate
+from ddmr_cli.control import rbf
 from ddmr_cli.model import kinematics
 from ddmr_cli import checks as validate
 from ddmr_cli.control.pid import _pd_spectral_radius
@@ -59,6 +60,36 @@ def test_wrap_angle_range_and_offset(a):
     assert -math.pi < w <= math.pi
     turns = (a - w) / (2.0 * math.pi)
     assert abs(turns - round(turns)) <= 1e-12 * max(1.0, abs(a))
+
+
+@FAST
+@given(a=angles)
+@example(a=math.pi)
+@example(a=-math.pi)
+@example(a=float(np.nextafter(-math.pi, -4.0)))  # pi - a just at 2 pi: the modulo's branch
+@example(a=float(np.nextafter(math.pi, 4.0)))
+def test_wrap_angle_is_the_modulo_formula_bit_for_bit(a):
+    """The fast path (no modulo inside one turn) gives the bits of ``pi - ((pi - a) % 2 pi)`` everywhere
+    (subtraction is correctly rounded and fmod exact under IEEE 754, so the bits are the same on every CPU)."""
+    plain = math.pi - ((math.pi - a) % (2.0 * math.pi))
+    plain = plain + 2.0 * math.pi if plain <= -math.pi else plain
+    assert kinematics.wrap_angle(a).hex() == plain.hex()
+
+
+@FAST
+@given(w_R=st.floats(-300, 300), w_L=st.floats(-300, 300), width=st.floats(0.3, 100.0),
+       n=st.integers(1, 25), low=st.floats(-80, 0), span=st.floats(0.1, 160))
+@example(w_R=33.3, w_L=33.3, width=2.0, n=10, low=-40.0, span=80.0)  # the paper: 3 far neurons at exactly 0
+def test_rbf_basis_is_exp_of_every_exponent_bit_for_bit(w_R, w_L, width, n, low, span):
+    """(27) with the far neurons set to 0 without exp: exactly the neurons whose exp underflows to 0 are skipped,
+    the others are exp of their exponent (to the last ulp; the same libm gives the same bits)."""
+    centers = np.linspace(low, low + span, n)
+    p = rbf.RBFParameters(centers, width, (50.0, 50.0))
+    phi = np.full(n, np.nan)
+    rbf.basis(p, phi, w_R, w_L)
+    expected = [math.exp(((w_R - c) ** 2 + (w_L - c) ** 2) * (-0.5 / (width * width))) for c in centers]
+    assert [v == 0.0 for v in phi] == [v == 0.0 for v in expected]  # exp's own underflow to exactly 0
+    np.testing.assert_allclose(phi, expected, rtol=4e-16, atol=0.0)
 
 
 @FAST

@@ -18,18 +18,40 @@ from ddmr_cli.checks import compact, finite, integer, per_wheel, positive
 from ddmr_cli.errors import ConfigError
 
 
+#: below this exponent exp underflows to exactly 0.0 (exp(-745.14) is half the smallest subnormal, 2^-1075)
+EXP_ZERO = -746.0
+
+
 class RBFParameters(NamedTuple):
-    centers: np.ndarray  # c_j [rad/s], shape (n,)
+    centers: np.ndarray  # c_j [rad/s], shape (n,), ascending (basis relies on it: np.linspace)
     width: float  # sigma [rad/s]
     learning_rate: tuple  # gamma per wheel (right, left)
 
 
 @law
+def exponent(p, j, w_R, w_L):
+    """The exponent of (27) for neuron ``j``: ``-||x - c_j||^2 / (2 sigma^2)``."""
+    return ((w_R - p.centers[j]) ** 2 + (w_L - p.centers[j]) ** 2) * (-0.5 / (p.width * p.width))
+
+
+@law
 def basis(p, phi, w_R, w_L):
-    """(27): ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))`` for ``x = (w_R, w_L)``, ``c_j = (c_j, c_j)``, into ``phi``."""
-    scale = -0.5 / (p.width * p.width)
-    for j in range(p.centers.shape[0]):
-        phi[j] = math.exp(((w_R - p.centers[j]) ** 2 + (w_L - p.centers[j]) ** 2) * scale)
+    """(27): ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))`` for ``x = (w_R, w_L)``, ``c_j = (c_j, c_j)``, into ``phi``.
+
+    exp is exactly 0 below :data:`EXP_ZERO`, and libm reaches that 0 by a slow path (underflow, errno): the
+    neurons far from ``x`` (at the paper's 33 rad/s, 3 of the 10) are set to 0 without calling it. The exponent is
+    concave in ``c_j`` and the centres ascend, so the neurons that need exp are one run ``lo .. hi - 1``; loop
+    bounds, unlike a branch per neuron, keep the compiler from calling exp for the others anyway."""
+    n = p.centers.shape[0]
+    lo, hi = 0, n
+    while lo < n and exponent(p, lo, w_R, w_L) < EXP_ZERO:
+        phi[lo] = 0.0
+        lo += 1
+    while hi > lo and exponent(p, hi - 1, w_R, w_L) < EXP_ZERO:
+        phi[hi - 1] = 0.0
+        hi -= 1
+    for j in range(lo, hi):
+        phi[j] = math.exp(exponent(p, j, w_R, w_L))
 
 
 @law

@@ -13,7 +13,9 @@ from ddmr_cli.compiled import law
 @law
 def wrap_angle(angle):
     """Wrap an angle into (-pi, pi] (docs/model.md §2)."""
-    wrapped = math.pi - ((math.pi - angle) % (2.0 * math.pi))
+    turned = math.pi - angle
+    # x % 2 pi is x itself for x in [0, 2 pi): skip the (slow, out-of-line) floating modulo then, same bits
+    wrapped = math.pi - (turned if 0.0 <= turned < 2.0 * math.pi else turned % (2.0 * math.pi))
     # the modulo can round up to exactly 2 pi (e.g. just above pi), which would give -pi: map it to pi
     return wrapped + 2.0 * math.pi if wrapped <= -math.pi else wrapped
 
