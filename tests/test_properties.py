@@ -93,6 +93,24 @@ def test_rbf_basis_is_exp_of_every_exponent_bit_for_bit(w_R, w_L, width, n, low,
 
 
 @FAST
+@given(speed=st.floats(-5, 5), heading=st.floats(-7, 7), x0=st.floats(-100, 100), y0=st.floats(-100, 100),
+       dt=st.floats(1e-5, 0.05), n=st.integers(1, 400))
+def test_the_straight_lines_table_is_its_reference_step_by_step(speed, heading, x0, y0, dt, n):
+    """The engine reads the reference from the line's vectorised table: the same bits as ``reference(k dt)``
+    (elementwise IEEE products and sums of the same operands), and a trajectory without a table falls back to it."""
+    from ddmr_cli.model.trajectory import StraightLine, reference_table
+
+    line = StraightLine(speed=speed, heading=heading, x0=x0, y0=y0)
+    by_step = np.array([line.reference(k * dt) for k in range(n)])
+    assert reference_table(line, n, dt).tobytes() == by_step.tobytes()
+
+    class Plain:  # only the protocol's reference(t)
+        reference = line.reference
+
+    assert reference_table(Plain(), n, dt).tobytes() == by_step.tobytes()
+
+
+@FAST
 @given(a=st.lists(angles, min_size=1, max_size=20))
 def test_wrap_angle_vectorised_agrees_with_scalar(a):
     arr = np.vectorize(kinematics.wrap_angle)(np.array(a))

@@ -65,13 +65,17 @@ class BandAccumulator:
         n = buffer.shape[1]
         if n == 0:
             return
-        values = np.where(np.isfinite(buffer), buffer, np.nan)
+        # one contiguous row of runs per grid point and channel: the percentiles partition rows, not strided columns
+        columns = np.ascontiguousarray(buffer.reshape(buffer.shape[0], -1).T)
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # a grid step where every run has diverged: NaN
-            finite = np.isfinite(values).all()
-            pct = np.percentile if finite else np.nanpercentile
-            mean = values.mean(axis=0) if finite else np.nanmean(values, axis=0)
-            low, high = pct(values, [LOW, HIGH], axis=0)
+            if np.isfinite(columns).all():
+                mean, (low, high) = buffer.mean(axis=0), np.percentile(columns, [LOW, HIGH], axis=1)
+            else:  # diverged runs (inf or NaN) drop out
+                columns[~np.isfinite(columns)] = np.nan
+                mean = np.nanmean(np.where(np.isfinite(buffer), buffer, np.nan), axis=0)
+                low, high = np.nanpercentile(columns, [LOW, HIGH], axis=1)
+        low, high = (a.reshape(n, len(BAND_CHANNELS)) for a in (low, high))
         self.mean[:, first:first + n] = mean.T
         self.low[:, first:first + n] = low.T
         self.high[:, first:first + n] = high.T

@@ -34,7 +34,7 @@ from ddmr_cli.model.robot import NominalModel, Robot
 from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.sensor import NOISE_CHANNELS, SENSOR_FIELDS, Sensor
 from ddmr_cli.model.terrain import Terrain
-from ddmr_cli.model.trajectory import StraightLine, Trajectory
+from ddmr_cli.model.trajectory import StraightLine, Trajectory, reference_table
 
 INTEGRATORS = ("euler", "rk4")
 #: bytes of standard normals per run and step buffered in a chunk (the only per-step buffer of unkept runs)
@@ -184,7 +184,7 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
                     (sim.terrain.correlation_time, sim.terrain.correlation_time, sim.scenario.uncertainty.correlation_time)]
     phases = sim.scenario.phases
     return World(
-        reference=np.array([sim.trajectory.reference(k * dt) for k in range(n_steps)], dtype=float).reshape(n_steps, 5),
+        reference=reference_table(sim.trajectory, n_steps, dt),
         phase=np.ascontiguousarray(sim.scenario.phase_index(np.arange(n_steps) * dt), dtype=np.int64),
         phase_by_distance=sim.scenario.phase_clock == "distance",
         phase_edges=np.ascontiguousarray(sim.scenario.inner_edges, dtype=float),
