@@ -57,6 +57,13 @@ def _aligned(rows: "pd.DataFrame", design: Design) -> "pd.DataFrame":
     return rows.loc[list(range(len(design.samples)))].reset_index()
 
 
+def bootstrap_seed(seed: int) -> int:
+    """The seed of SALib's bootstrap confidence intervals for a study's ``sampler_seed``: never 0, because
+    ``SALib.analyze.sobol.analyze`` seeds only when ``if seed:`` holds, so 0 (our default) left the intervals
+    random, different at every analysis of the same rows."""
+    return int(np.random.SeedSequence(int(seed)).generate_state(1)[0]) or 1
+
+
 def morris(rows: "pd.DataFrame", design: Design, levels: int, seed: int) -> "pd.DataFrame":
     """Per claim and parameter: mu, mu*, its 95 % CI half-width, sigma (SALib ``morris.analyze``) of the clipped
     statistic (:func:`outputs`)."""
@@ -67,8 +74,8 @@ def morris(rows: "pd.DataFrame", design: Design, levels: int, seed: int) -> "pd.
     out = []
     for claim in claim_stats.CLAIM_IDS:
         y, replaced, clipped = outputs(rows, claim)
-        res = morris_analyze.analyze(problem(design.names), design.unit, y, num_levels=levels, seed=seed,
-                                     print_to_console=False)
+        res = morris_analyze.analyze(problem(design.names), design.unit, y, num_levels=levels,
+                                     seed=bootstrap_seed(seed), print_to_console=False)
         for i, name in enumerate(design.names):
             out.append({"claim": claim, "parameter": name, "mu": res["mu"][i], "mu_star": res["mu_star"][i],
                         "mu_star_conf": res["mu_star_conf"][i], "sigma": res["sigma"][i], "replaced": replaced,
@@ -90,7 +97,7 @@ def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "p
             res = {k: np.full(len(design.names), np.nan) for k in ("S1", "S1_conf", "ST", "ST_conf")}
         else:
             res = sobol_analyze.analyze(problem(design.names), y, calc_second_order=False, num_resamples=resamples,
-                                        conf_level=0.95, seed=seed, print_to_console=False)
+                                        conf_level=0.95, seed=bootstrap_seed(seed), print_to_console=False)
         for i, name in enumerate(design.names):
             out.append({"claim": claim, "parameter": name, "S1": res["S1"][i], "S1_conf": res["S1_conf"][i],
                         "ST": res["ST"][i], "ST_conf": res["ST_conf"][i], "replaced": replaced, "clipped": clipped})
@@ -194,5 +201,5 @@ def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
     return lines
 
 
-__all__ = ["morris", "sobol", "holds", "calibration", "analyse", "outputs", "wilson", "MORRIS_CSV", "SOBOL_CSV",
-           "HOLDS_CSV", "CALIBRATION_JSON", "CLIP"]
+__all__ = ["bootstrap_seed", "morris", "sobol", "holds", "calibration", "analyse", "outputs", "wilson", "MORRIS_CSV",
+           "SOBOL_CSV", "HOLDS_CSV", "CALIBRATION_JSON", "CLIP"]
