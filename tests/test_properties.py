@@ -83,8 +83,9 @@ def test_wrap_angle_is_the_modulo_formula_bit_for_bit(a):
 def test_rbf_basis_is_exp_of_every_exponent_bit_for_bit(w_R, w_L, width, n, low, span):
     """(27) with the far neurons set to 0 without exp: exactly the neurons whose exp underflows to 0 are skipped,
     the others are exp of their exponent (to the last ulp; the same libm gives the same bits)."""
-    centers = np.linspace(low, low + span, n)
-    p = rbf.RBFParameters(centers, width, (50.0, 50.0))
+    nn = rbf.RBFNetworkObserver(n_neurons=n, width=width, learning_rate=50.0, center_min=low, center_max=low + span)
+    p, centers = nn.law_parameters(), nn.centers
+    assert [rbf.center(p, j) for j in range(n)] == list(centers)  # the laws' c_j are numpy.linspace's, exactly
     phi = np.full(n, np.nan)
     rbf.basis(p, phi, w_R, w_L)
     expected = [math.exp(((w_R - c) ** 2 + (w_L - c) ** 2) * (-0.5 / (width * width))) for c in centers]
@@ -108,6 +109,19 @@ def test_the_straight_lines_table_is_its_reference_step_by_step(speed, heading, 
         reference = line.reference
 
     assert reference_table(Plain(), n, dt).tobytes() == by_step.tobytes()
+
+
+@FAST
+@given(n=st.integers(1, 300), rows=st.integers(1, 30), scale=st.floats(1e-9, 1e6), seed=st.integers(0, 2**32 - 1))
+def test_band_percentiles_of_sorted_rows_are_numpys(n, rows, scale, seed):
+    """The seed bands' percentiles (rows sorted, two order statistics interpolated as numpy's 'linear' method
+    does) are np.percentile's, to the last ulp."""
+    from ddmr_cli.engine.bands import HIGH, LOW, percentiles_of_sorted
+
+    x = np.random.default_rng(seed).standard_normal((rows, n)) * scale
+    ours = percentiles_of_sorted(np.sort(x, axis=1), [LOW, HIGH])
+    for mine, numpys in zip(ours, np.percentile(x, [LOW, HIGH], axis=1)):
+        np.testing.assert_array_max_ulp(mine, numpys, maxulp=1)
 
 
 @FAST

@@ -23,15 +23,31 @@ EXP_ZERO = -746.0
 
 
 class RBFParameters(NamedTuple):
-    centers: np.ndarray  # c_j [rad/s], shape (n,), ascending (basis relies on it: np.linspace)
+    """The network's constants, all scalars: an array here would be reference-counted at every call of the laws
+    that take these parameters, and made SMC's step (which never uses the network) 2x slower."""
+
+    n_neurons: int  # n
+    center_min: float  # c_1 [rad/s]
+    center_max: float  # c_n [rad/s]
+    center_step: float  # (c_n - c_1) / (n - 1) [rad/s]; 0 for one neuron
     width: float  # sigma [rad/s]
     learning_rate: tuple  # gamma per wheel (right, left)
 
 
 @law
+def center(p, j):
+    """``c_j`` [rad/s], evenly spaced on ``[c_1, c_n]`` (docs/model.md §6): ``c_1 + j step``, the last one exactly
+    ``c_n`` (the numbers ``numpy.linspace`` gives)."""
+    if j == p.n_neurons - 1 and j > 0:
+        return p.center_max
+    return j * p.center_step + p.center_min
+
+
+@law
 def exponent(p, j, w_R, w_L):
     """The exponent of (27) for neuron ``j``: ``-||x - c_j||^2 / (2 sigma^2)``."""
-    return ((w_R - p.centers[j]) ** 2 + (w_L - p.centers[j]) ** 2) * (-0.5 / (p.width * p.width))
+    c = center(p, j)
+    return ((w_R - c) ** 2 + (w_L - c) ** 2) * (-0.5 / (p.width * p.width))
 
 
 @law
@@ -42,7 +58,7 @@ def basis(p, phi, w_R, w_L):
     neurons far from ``x`` (at the paper's 33 rad/s, 3 of the 10) are set to 0 without calling it. The exponent is
     concave in ``c_j`` and the centres ascend, so the neurons that need exp are one run ``lo .. hi - 1``; loop
     bounds, unlike a branch per neuron, keep the compiler from calling exp for the others anyway."""
-    n = p.centers.shape[0]
+    n = p.n_neurons
     lo, hi = 0, n
     while lo < n and exponent(p, lo, w_R, w_L) < EXP_ZERO:
         phi[lo] = 0.0
@@ -99,10 +115,16 @@ class RBFNetworkObserver:
         if self.center_max <= self.center_min and self.n_neurons > 1:
             raise ConfigError("controller.nn.center_max", center_max,
                               f"must be > controller.nn.center_min ({self.center_min:g})")
-        self.centers = np.linspace(self.center_min, self.center_max, self.n_neurons)
+
+    @property
+    def centers(self) -> np.ndarray:
+        """The centres ``c_j`` [rad/s], shape (n,) (the laws compute them: :func:`center`)."""
+        return np.linspace(self.center_min, self.center_max, self.n_neurons)
 
     def law_parameters(self) -> RBFParameters:
-        return RBFParameters(self.centers.copy(), self.width, self.learning_rate)
+        n, low, high = self.n_neurons, self.center_min, self.center_max
+        step = (high - low) / (n - 1) if n > 1 else 0.0  # as numpy.linspace computes it
+        return RBFParameters(n, low, high, step, self.width, self.learning_rate)
 
     def parameters(self) -> dict[str, object]:
         return {"n": self.n_neurons, "sigma": self.width, "gamma": compact(self.learning_rate),

@@ -16,7 +16,6 @@ import math
 import sys
 from typing import NamedTuple
 
-import numpy as np
 
 from ddmr_cli.compiled import law
 from ddmr_cli.control import ndo, rbf
@@ -150,7 +149,7 @@ class SMC(WheelController):
     def law_parameters(self, nominal: NominalModel, dt: float) -> SMCParameters:
         ndo_params = self.ndo.law_parameters() if self.ndo is not None else ndo.NDOParameters((0.0, 0.0))
         nn_params = (self.nn.law_parameters() if self.nn is not None
-                     else rbf.RBFParameters(np.zeros(1), 1.0, (0.0, 0.0)))
+                     else rbf.RBFParameters(1, 0.0, 0.0, 0.0, 1.0, (0.0, 0.0)))
         return SMCParameters(self.lam, self.switching_gain, self.boundary_layer, self.surface == "integral",
                              SWITCHING_FUNCTIONS.index(self.switching), nominal, float(dt),
                              self.ndo is not None, ndo_params, self.nn is not None, nn_params)

@@ -30,6 +30,23 @@ def band_row(row, deviation, e_x, e_y, e_theta, u_R, u_L, s_R, s_L):
     row[4], row[5], row[6], row[7] = u_R, u_L, s_R, s_L
 
 
+def percentiles_of_sorted(rows: np.ndarray, percents) -> list[np.ndarray]:
+    """Percentiles of each row of ``rows`` (sorted ascending along the last axis, all finite) by numpy's default
+    ``linear`` method, operation for operation: virtual index ``h = (n - 1) p / 100``, order statistics ``a =
+    x[floor h]``, ``b`` the next, ``g = h - floor h``, then ``a + (b - a) g`` or, for ``g >= 0.5``,
+    ``b - (b - a)(1 - g)``. Sorting the rows (SIMD) and reading two columns is several times faster than
+    ``np.percentile``'s selection per row at tens to hundreds of runs."""
+    n = rows.shape[-1]
+    out = []
+    for p in percents:
+        h = (n - 1) * (float(p) / 100.0)
+        k = math.floor(h)
+        g = h - k
+        a, b = rows[..., k], rows[..., min(k + 1, n - 1)]
+        out.append(b - (b - a) * (1.0 - g) if g >= 0.5 else a + (b - a) * g)
+    return out
+
+
 def band_stride(n_steps: int) -> int:
     """Steps between two grid points of a band of ``n_steps`` steps."""
     return max(1, math.ceil(n_steps / MAX_POINTS))
@@ -70,7 +87,8 @@ class BandAccumulator:
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # a grid step where every run has diverged: NaN
             if np.isfinite(columns).all():
-                mean, (low, high) = buffer.mean(axis=0), np.percentile(columns, [LOW, HIGH], axis=1)
+                columns.sort(axis=1)
+                mean, (low, high) = buffer.mean(axis=0), percentiles_of_sorted(columns, [LOW, HIGH])
             else:  # diverged runs (inf or NaN) drop out
                 columns[~np.isfinite(columns)] = np.nan
                 mean = np.nanmean(np.where(np.isfinite(buffer), buffer, np.nan), axis=0)
@@ -88,4 +106,4 @@ class BandAccumulator:
         return out
 
 
-__all__ = ["BAND_CHANNELS", "BandAccumulator", "band_row", "band_stride"]
+__all__ = ["BAND_CHANNELS", "BandAccumulator", "band_row", "band_stride", "percentiles_of_sorted"]
