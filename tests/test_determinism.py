@@ -226,3 +226,17 @@ def test_non_finite_deviation_counts_as_divergence():
     for name in ref.metrics:
         assert np.array_equal(res.metrics[name][1], ref.metrics[name][1], equal_nan=True), name
     assert_series_equal(res.series[1], ref.series[1])
+
+
+def test_noise_drawn_by_blocks_of_runs_is_the_noise_drawn_at_once():
+    """Worker threads each draw their own runs' normals: the same numbers as one draw for all runs."""
+    from ddmr_cli.engine.noise import NoiseStreams
+
+    whole = NoiseStreams([5, 6, 7, 8, 9]).next_chunk(40)
+    streams = NoiseStreams([5, 6, 7, 8, 9])
+    blocks = np.empty_like(whole)
+    for block in ((3, 5), (0, 3)):  # any order
+        streams.next_chunk(40, blocks, block)
+    assert np.array_equal(blocks, whole)
+    with pytest.raises(ValueError, match="shape"):
+        streams.next_chunk(40, np.empty((5, 39, 3)), (0, 2))

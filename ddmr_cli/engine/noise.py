@@ -55,13 +55,21 @@ class NoiseStreams:
             rng.standard_normal(out=out[i])
         return out
 
-    def next_chunk(self, n_steps: int, out: np.ndarray | None = None) -> np.ndarray:
-        """The next ``n_steps`` normals per run and channel, run-major: shape ``(n_runs, n_steps, channels)``."""
+    def next_chunk(self, n_steps: int, out: np.ndarray | None = None, runs: tuple[int, int] | None = None
+                   ) -> np.ndarray:
+        """The next ``n_steps`` normals per run and channel, run-major: shape ``(n_runs, n_steps, channels)``.
+
+        ``runs=(first, end)`` draws for those runs only, into their rows of ``out`` (which must then have the
+        shape): the engine's worker threads each draw their own block (numpy releases the GIL while it fills),
+        and a run's numbers are the same whichever thread draws them."""
         shape = (len(self.generators), n_steps, self.channels)
         if out is None or out.shape != shape:
+            if runs is not None:
+                raise ValueError(f"out must have shape {shape} to be filled by blocks of runs")
             out = np.empty(shape)
-        for i, rng in enumerate(self.generators):
-            rng.standard_normal(out=out[i])
+        first, end = runs if runs is not None else (0, len(self.generators))
+        for i in range(first, end):
+            self.generators[i].standard_normal(out=out[i])
         return out
 
 

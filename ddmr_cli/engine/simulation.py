@@ -266,17 +266,24 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
             k0 = 0
             while k0 < n_steps:
                 n = min(chunk, n_steps - k0)
-                xi = noise.next_chunk(n, xi)
-                if sensor_noise is not None:
-                    xs = sensor_noise.next_chunk(n, xs)
+                if xi is None or xi.shape[1] != n:
+                    xi = np.empty((n_runs, n, NoiseStreams.channels))
+                    xs = np.empty((n_runs, n, len(NOISE_CHANNELS))) if sensor_noise is not None else xs
                 first, end = band_acc.grid_range(k0, n) if band_acc is not None else (0, 0)
                 band_buffer = np.empty((n_runs, end - first, len(BAND_CHANNELS)))
                 args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
                         slot, band_buffer, first)
+
+                def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
+                    noise.next_chunk(n, xi, block)
+                    if sensor_noise is not None:
+                        sensor_noise.next_chunk(n, xs, block)
+                    loop(*args, *block)
+
                 if pool is None:
-                    loop(*args, 0, n_runs)
+                    advance((0, n_runs))
                 else:
-                    for future in [pool.submit(loop, *args, *block) for block in blocks]:
+                    for future in [pool.submit(advance, block) for block in blocks]:
                         future.result()
                 if band_acc is not None:
                     band_acc.add_chunk(band_buffer, first)
