@@ -61,6 +61,13 @@ def cached_law(fn):
     return njit(cache=True, nogil=True)(fn) if AVAILABLE else fn
 
 
+def plain(fn):
+    """The plain Python function behind a law, for set-up code that calls a law once on a few floats: calling the
+    compiled law from Python would compile it in every process (about 0.4 s), for a result with the same bits
+    (the laws are IEEE arithmetic and ``math`` calls, which numba does not reorder or fuse)."""
+    return getattr(fn, "py_func", fn)
+
+
 def jit_enabled() -> bool:
     """True when laws run compiled: numba is installed and ``NUMBA_DISABLE_JIT`` is not set."""
     return AVAILABLE and not numba.config.DISABLE_JIT
@@ -72,4 +79,4 @@ def thread_count(n: int) -> int:
     return max(1, int(n) if n else cores)
 
 
-__all__ = ["AVAILABLE", "cached_law", "jit_enabled", "law", "thread_count"]
+__all__ = ["AVAILABLE", "cached_law", "jit_enabled", "law", "plain", "thread_count"]

@@ -52,6 +52,21 @@ def test_inverse_matches_paper_eq_4_5():
     assert wl == pytest.approx((1.0 - 0.25 * 2.0) / 0.03, rel=1e-15)  # 16.67 rad/s
 
 
+def test_the_plain_law_set_up_code_calls_agrees_with_the_compiled_one():
+    """Set-up and validation call ``plain(inverse)`` (no compilation per process); the step loop runs the compiled
+    law. Both must give the initial wheel speeds the same numbers (to 1 ulp, whatever the CPU)."""
+    from ddmr_cli.compiled import jit_enabled, plain
+
+    rng = np.random.default_rng(7)
+    for v, omega, radius, half_track in zip(rng.uniform(-3, 3, 200), rng.uniform(-5, 5, 200),
+                                            rng.uniform(0.01, 0.2, 200), rng.uniform(0.05, 0.5, 200)):
+        compiled = kinematics.inverse(v, omega, radius, half_track)
+        python = plain(kinematics.inverse)(v, omega, radius, half_track)
+        np.testing.assert_array_max_ulp(np.array(python), np.array(compiled), maxulp=1)
+    if jit_enabled():
+        assert plain(kinematics.inverse) is kinematics.inverse.py_func
+
+
 def test_inverse_then_forward_roundtrip():
     v, omega = kinematics.forward(*kinematics.inverse(0.7, -0.4, R, L), R, L)
     assert v == pytest.approx(0.7, rel=1e-14)

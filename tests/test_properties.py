@@ -125,6 +125,25 @@ def test_band_percentiles_of_sorted_rows_are_numpys(n, rows, scale, seed):
 
 
 @FAST
+@given(n=st.integers(1, 5000), rows=st.integers(1, 4), ties=st.booleans(), seed=st.integers(0, 2**32 - 1))
+def test_band_rows_partitioned_give_the_sorted_rows_order_statistics(n, rows, ties, seed):
+    """From PARTITION_MIN_RUNS runs on, the bands partition each row instead of sorting it: the percentiles read
+    from the partitioned rows are those of the sorted rows, bit for bit (ties too), and numpy's to 1 ulp."""
+    from ddmr_cli.engine.bands import HIGH, LOW, order_rows, percentiles_of_sorted
+
+    x = np.random.default_rng(seed).standard_normal((rows, n))
+    if ties:
+        x = np.round(x, 1)  # many equal values around each order statistic
+    ordered = x.copy()
+    order_rows(ordered, [LOW, HIGH])
+    ours = percentiles_of_sorted(ordered, [LOW, HIGH])
+    for mine, sorted_, numpys in zip(ours, percentiles_of_sorted(np.sort(x, axis=1), [LOW, HIGH]),
+                                     np.percentile(x, [LOW, HIGH], axis=1)):
+        assert mine.tobytes() == sorted_.tobytes()
+        np.testing.assert_array_max_ulp(mine, numpys, maxulp=1)
+
+
+@FAST
 @given(a=st.lists(angles, min_size=1, max_size=20))
 def test_wrap_angle_vectorised_agrees_with_scalar(a):
     arr = np.vectorize(kinematics.wrap_angle)(np.array(a))

@@ -95,12 +95,13 @@ def write_csv(path: Path, frame) -> Path:
 
 
 def write_series(path: Path, series: dict[int, dict[str, np.ndarray]]) -> Path:
-    """Time series of the kept seeds, compressed: key ``seed<k>/<channel>``."""
+    """Time series of the kept seeds, uncompressed (deflate shrank the paper's run from 3.5 to 3.3 MB and took
+    0.1 s of a 1 s run): key ``seed<k>/<channel>``."""
     arrays = {f"seed{seed}/{name}": arr for seed, channels in series.items() for name, arr in channels.items()}
 
     def _write(tmp: str) -> None:
         with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+            np.savez(fh, **arrays)
 
     return atomic_write(path, _write)
 

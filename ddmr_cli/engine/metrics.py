@@ -215,9 +215,8 @@ class MetricAccumulator:
     def finalize(self, state: np.ndarray) -> dict[str, np.ndarray]:
         """Metrics per run and segment from the sums and the run-state array: ``{name: array (n_runs, n_segments)}``
         for every metric of :data:`METRICS` and its steady-state twin ``name + STEADY`` (NaN where a segment is
-        empty)."""
-        for r in range(self.n_runs):  # the steps since each run's segments last changed
-            flush(self.sums, r, state[r])
+        empty). The step loop has added each run's last block to its segments at the run's last step
+        (:func:`flush`), so this is numpy on the sums alone."""
         n = len(self.segments)
         every = self._metrics(self.sums[:, :n], state["dev_max"], state["dev_final"])
         steady = self._metrics(self.sums[:, n:], state["dev_max_ss"], state["dev_final"])

@@ -17,7 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ddmr_cli.compiled import jit_enabled, thread_count
+from ddmr_cli.compiled import jit_enabled, plain, thread_count
 from ddmr_cli.checks import finite, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
@@ -172,7 +172,7 @@ def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
             return np.zeros(2)
         if spec == "reference":
             _, _, _, v_r, omega_r = sim.trajectory.reference(0.0)
-            return np.array(inverse(v_r, omega_r, sim.robot.wheel_radius, sim.robot.half_track), dtype=float)
+            return np.array(plain(inverse)(v_r, omega_r, sim.robot.wheel_radius, sim.robot.half_track), dtype=float)
         raise ConfigError("simulation.initial_wheel_speeds", spec, "must be 'reference', 'rest' or [w_R, w_L]")
     return np.array(per_wheel("simulation.initial_wheel_speeds", list(spec), finite))
 
@@ -285,8 +285,13 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                 else:
                     for future in [pool.submit(advance, block) for block in blocks]:
                         future.result()
-                if band_acc is not None:
+                if band_acc is not None and pool is None:
                     band_acc.add_chunk(band_buffer, first)
+                elif band_acc is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
+                    m = end - first
+                    parts = [(m * i // n_threads, m * (i + 1) // n_threads) for i in range(n_threads)]
+                    for future in [pool.submit(band_acc.add_chunk, band_buffer, first, part) for part in parts]:
+                        future.result()
                 k0 += n
                 if progress is not None:
                     progress(k0, n_steps)

@@ -29,7 +29,7 @@ from ddmr_cli.control.open_loop import update as controller_update  # controller
 from ddmr_cli.control.outer_loop import kanayama
 from ddmr_cli.engine.bands import band_row
 from ddmr_cli.engine.integrators import euler, rk4
-from ddmr_cli.engine.metrics import accumulate
+from ddmr_cli.engine.metrics import accumulate, flush
 from ddmr_cli.engine.noise import ou_step
 from ddmr_cli.engine.results import record
 from ddmr_cli.model import actuator, sensor
@@ -148,3 +148,5 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
     run["saturated"][0], run["saturated"][1], run["s"][0], run["s"][1] = 1 if sat_R else 0, 1 if sat_L else 0, s_R, s_L
     run["d_ndo"][0], run["d_ndo"][1], run["d_nn"][0], run["d_nn"][1] = ndo_R, ndo_L, nn_R, nn_L
     run["w_d"][0], run["w_d"][1] = wd_R, wd_L
+    if k0 + n_steps == world.reference.shape[0]:  # the run's last step: add its open block to its segments
+        flush(sums, r, acc)

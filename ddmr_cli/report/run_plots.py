@@ -1,6 +1,7 @@
 """Plots of one job's first kept seed (``run.plots=true``): trajectory, errors, control signal.
 
-Uses the report's styles, decimation and saver (:mod:`.plotting`); matplotlib is imported only when a plot is made.
+Uses the report's styles, decimation and saver (:mod:`.plotting`); matplotlib is imported only when a plot is made, and
+not its pyplot (:func:`.plotting.figure`).
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddmr_cli.report.plotting import REFERENCE_STYLE, StyleBook, equal_aspect, label_of, pyplot, save, thin
+from ddmr_cli.report.plotting import REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of, save, thin
 
 
 def _plot(ax, x, y, **kw):
@@ -19,7 +20,6 @@ def _plot(ax, x, y, **kw):
 
 def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, seed: int, out_dir: Path) -> list[Path]:
     """Trajectory, errors and control signal of one run: three PNGs in ``out_dir``."""
-    plt = pyplot()
     out_dir = Path(out_dir)
     title = f"{label_of(controller)}, {scenario}, seed {seed}"
     style = StyleBook([controller])[controller].kwargs()
@@ -27,7 +27,8 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     t = series["t"]
     paths = []
 
-    fig, ax = plt.subplots(figsize=(8, 3.5))
+    fig = figure(figsize=(8, 3.5))
+    ax = fig.subplots()
     _plot(ax, series["x_ref"], series["y_ref"], label="reference", zorder=10, **REFERENCE_STYLE)
     _plot(ax, series["x"], series["y"], label=label_of(controller), **style)
     equal_aspect(ax)
@@ -37,7 +38,8 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     fig.subplots_adjust(left=0.1, right=0.98, bottom=0.14, top=0.9)
     paths.append(save(fig, out_dir / "trajectory.png", tight=False))
 
-    fig, axes = plt.subplots(4, 1, figsize=(8, 8), sharex=True)
+    fig = figure(figsize=(8, 8))
+    axes = fig.subplots(4, 1, sharex=True)
     for ax, key, label in zip(axes, ("deviation", "e_x", "e_y", "e_theta"),
                               ("deviation [m]", "e_x [m]", "e_y [m]", "e_theta [rad]")):
         _plot(ax, t, series[key], color=color, lw=0.8)
@@ -48,7 +50,8 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     fig.subplots_adjust(left=0.12, right=0.98, bottom=0.07, top=0.95, hspace=0.12)
     paths.append(save(fig, out_dir / "errors.png", tight=False))
 
-    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    fig = figure(figsize=(8, 7))
+    axes = fig.subplots(3, 1, sharex=True)
     for ax, key, unit in ((axes[0], "u", "voltage [V]"), (axes[1], "s", "s [rad/s]")):
         _plot(ax, t, series[f"{key}_right"], color=color, lw=0.6, label=f"{key}_R")
         _plot(ax, t, series[f"{key}_left"], color="0.5", lw=0.6, alpha=0.7, label=f"{key}_L")

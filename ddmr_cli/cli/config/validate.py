@@ -234,6 +234,7 @@ def check_derived(sim) -> None:
     """The numbers derived from the values are finite: J^-1 and the plant's fastest pole (robot), the
     controller's law parameters, the reference over the run (trajectory), the initial wheel speeds and the
     initial deviation (within simulation.divergence_bound, else every run stops at once)."""
+    from ddmr_cli.compiled import plain
     from ddmr_cli.model.kinematics import inverse
     from ddmr_cli.model.robot import NominalModel
 
@@ -253,7 +254,7 @@ def check_derived(sim) -> None:
             raise DerivedError("trajectory", f"the reference at t = {t:g} s is not finite")
     x_r, y_r, _, v_r, omega_r = sim.trajectory.reference(0.0)
     if sim.initial_wheel_speeds == "reference":
-        wheels = inverse(v_r, omega_r, sim.robot.wheel_radius, sim.robot.half_track)
+        wheels = plain(inverse)(v_r, omega_r, sim.robot.wheel_radius, sim.robot.half_track)
         if not all(math.isfinite(w) for w in wheels):
             raise DerivedError("trajectory", "the initial wheel speeds of the reference (v_r / R) are not finite")
     dx, dy = float(sim.initial_pose[0]) - x_r, float(sim.initial_pose[1]) - y_r
