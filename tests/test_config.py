@@ -185,3 +185,45 @@ def test_config_and_python_api_give_the_same_numbers():
     direct = simulate(sim, seeds=[0, 1], keep_series=[0])
     for name, arr in direct.metrics.items():
         assert np.array_equal(arr, from_config.metrics[name], equal_nan=True), name
+
+
+JOB_OVERRIDES = [
+    [],
+    ["run.base_seed=7", "run.n_runs=3"],
+    ["controller=pid", "controller.kp=8", "scenario=paper_2"],
+    ["controller=smc_ndo", "controller/ndo=paper", "controller.switching_gain=4.5"],
+    ["+experiment=table4", "controller=smc", "scenario=paper_1"],
+    ["+tags.note=baseline", "++run.n_runs=5", "simulation.initial_pose=[0.0,0.1,0.0]"],
+    ["controller=smc_nno", "simulation.dt=0.0005", "run.keep_series=[0,2]"],
+    ["terrain.zones.very_rough.roughness=50", "trajectory=circle", "trajectory.radius=3"],
+    ["sensor=encoder", "actuator=realistic", "control.rate=200", "hydra.sweep.dir=/tmp/x"],
+    ["~tags"],
+]
+
+
+@pytest.mark.parametrize("overrides", JOB_OVERRIDES, ids=lambda o: " ".join(o) or "none")
+def test_the_sweep_composer_gives_hydras_composition(overrides):
+    """Pre-validation composes a sweep's defaults tree once per set of group choices and applies each job's value
+    overrides to a copy (JobComposer): every kind of override gives the config a full composition gives."""
+    from ddmr_cli.cli.config import JobComposer, compose_config
+
+    composer = JobComposer()
+    composer.compose(["run.base_seed=1"])  # a cached skeleton from an earlier job must not leak into the next
+    ours, full = composer.compose(overrides), compose_config(overrides)
+    assert OmegaConf.to_yaml(ours) == OmegaConf.to_yaml(full)
+    assert OmegaConf.is_struct(ours)
+    assert OmegaConf.to_yaml(composer.compose(overrides)) == OmegaConf.to_yaml(full)  # the copy, not the skeleton
+
+
+@pytest.mark.parametrize("bad", [["run.n_runs=many"], ["run.nruns=5"], ["controller=nope"], ["+run.n_runs=5"]])
+def test_the_sweep_composer_refuses_what_hydra_refuses(bad):
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ddmr_cli.cli.config import JobComposer, compose_config
+
+    with pytest.raises((HydraException, OmegaConfBaseException)) as full:
+        compose_config(bad)
+    with pytest.raises((HydraException, OmegaConfBaseException)) as ours:
+        JobComposer().compose(bad)
+    assert type(ours.value) is type(full.value)

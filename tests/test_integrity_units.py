@@ -259,6 +259,9 @@ def test_the_plan_names_job_dirs_as_the_jobs_will_and_finds_shared_dirs():
                            compose_config(["hydra.sweep.subdir=x"], return_hydra_config=True))
     a, b = sweep.shared_dir(same)
     assert a["dir"] == b["dir"] == "x" and a["overrides"] != b["overrides"]
+    numbered = sweep.plan_jobs(["controller=pid,smc,sta", "hydra.sweep.subdir=job${hydra.job.num}"],
+                               compose_config(["hydra.sweep.subdir=job${hydra.job.num}"], return_hydra_config=True))
+    assert [job["dir"] for job in numbered] == ["job0", "job1", "job2"]  # each job's own number, as Hydra's
 
 
 def test_a_corrupt_job_is_failed_and_foreign_jobs_are_listed(tmp_path):

@@ -169,7 +169,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
     from omegaconf.errors import OmegaConfBaseException
 
     from ddmr_cli.cli import budget, sweep
-    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.cli.config import JobComposer, compose_config
     from ddmr_cli.cli.config.validate import check_additions, job_estimate, message, validate_config
     from ddmr_cli.errors import ConfigError
 
@@ -210,9 +210,10 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             raise UsageError(f"{empty}: the sweep has no jobs (an empty range or list); nothing to run")
         _refuse_shared_dirs(plan, [o for o in overrides if o.startswith("hydra.sweep.subdir=")])
         largest = None
+        jobs = JobComposer(config_name, config_dir, extra)  # the defaults tree once per set of group choices
         for job in plan:
             current = job["overrides"]
-            cfg = compose(current) if multirun else base
+            cfg = jobs.compose(current) if multirun else base
             check_additions(cfg, current)
             sim = validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here
             est = job_estimate(cfg, sim)
@@ -466,7 +467,7 @@ def _compose_for_help(overrides: list[str], config_name: str):
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.cli.config import JobComposer, compose_config
 
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)

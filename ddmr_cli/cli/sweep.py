@@ -65,17 +65,16 @@ def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_
     return get_overrides_dirname(parsed, exclude_keys=list(exclude_keys), item_sep=item_sep, kv_sep=kv_sep)
 
 
-def _subdir(root: DictConfig, dirname: str, num: int) -> str:
-    """A job's ``hydra.sweep.subdir`` as Hydra will resolve it in the job (override_dirname and num set)."""
+def _subdir(scratch: DictConfig, dirname: str, num: int) -> str:
+    """A job's ``hydra.sweep.subdir`` as Hydra will resolve it in the job (override_dirname and num set), on
+    ``scratch``, a plain copy of the sweep's config whose ``hydra.job`` this sets."""
     from omegaconf import OmegaConf
 
     from ddmr_cli.cli.jobdir import safe_name
 
-    container = OmegaConf.to_container(root, resolve=False)
-    job = container["hydra"].setdefault("job", {})
-    job.update({"override_dirname": dirname, "num": num, "id": str(num)})
+    scratch.hydra.job.override_dirname, scratch.hydra.job.num, scratch.hydra.job.id = dirname, num, str(num)
     try:
-        return str(OmegaConf.select(OmegaConf.create(container), "hydra.sweep.subdir", throw_on_missing=True))
+        return str(OmegaConf.select(scratch, "hydra.sweep.subdir", throw_on_missing=True))
     except Exception:  # noqa: BLE001  (an interpolation only Hydra's job runtime can resolve)
         return safe_name(dirname)
 
@@ -90,7 +89,10 @@ def plan_jobs(overrides: Iterable[str], cfg: DictConfig) -> list[dict]:
     hydra_cfg = root.hydra
     od = hydra_cfg.job.config.override_dirname
     jobs = expand_jobs(overrides, dict(hydra_cfg.sweeper.get("params") or {}))
-    return [{"dir": _subdir(root, job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), num), "overrides": job}
+    scratch = OmegaConf.create(OmegaConf.to_container(root, resolve=False))  # one copy for every job's subdir
+    if "job" not in scratch.hydra:
+        scratch.hydra.job = {}
+    return [{"dir": _subdir(scratch, job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), num), "overrides": job}
             for num, job in enumerate(jobs)]
 
 
