@@ -467,7 +467,7 @@ def _compose_for_help(overrides: list[str], config_name: str):
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ddmr_cli.cli.config import JobComposer, compose_config
+    from ddmr_cli.cli.config import compose_config
 
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)

@@ -46,11 +46,9 @@ def order_rows(rows: np.ndarray, percents) -> None:
     rows.partition(ks, axis=-1)
     # after the partition, everything right of position k is >= rows[k], and everything up to the next k' is <=
     # rows[k']: the (k + 1)-th order statistic is the smallest value in (k, k'] (or (k, n) for the last k)
-    bounds = ks[1:] + [n - 1]
-    nexts = [rows[..., k + 1:end + 1].min(axis=-1) if k + 1 < n else rows[..., k] for k, end in zip(ks, bounds)]
-    for k, nxt in zip(ks, nexts):
-        if k + 1 < n:
-            rows[..., k + 1] = nxt
+    nexts = {k: rows[..., k + 1:end + 1].min(axis=-1) for k, end in zip(ks, ks[1:] + [n - 1]) if k + 1 < n}
+    for k, nxt in nexts.items():  # all read before any is written
+        rows[..., k + 1] = nxt
 
 
 def percentiles_of_sorted(rows: np.ndarray, percents) -> list[np.ndarray]:

@@ -177,6 +177,21 @@ def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
     return np.array(per_wheel("simulation.initial_wheel_speeds", list(spec), finite))
 
 
+def _split(n: int, parts: int) -> list[tuple[int, int]]:
+    """``range(n)`` in ``parts`` contiguous ``(first, end)`` blocks of sizes differing by at most one."""
+    return [(n * i // parts, n * (i + 1) // parts) for i in range(parts)]
+
+
+def _each(pool: ThreadPoolExecutor | None, fn: Callable, parts: list) -> None:
+    """``fn(part)`` for every part: in the pool's threads at once, or one after the other without a pool."""
+    if pool is None:
+        for part in parts:
+            fn(part)
+        return
+    for future in [pool.submit(fn, part) for part in parts]:
+        future.result()
+
+
 def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, phase_base: int,
            bands: BandAccumulator | None) -> World:
     dt = float(sim.dt)
@@ -259,7 +274,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (bytes_per_run_step * n_runs))))
     plant, xi = sim.robot.plant(), None
     n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
-    blocks = [(n_runs * i // n_threads, n_runs * (i + 1) // n_threads) for i in range(n_threads)]
+    blocks = _split(n_runs, n_threads)
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
     try:
         with np.errstate(all="ignore"):
@@ -280,18 +295,10 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                         sensor_noise.next_chunk(n, xs, block)
                     loop(*args, *block)
 
-                if pool is None:
-                    advance((0, n_runs))
-                else:
-                    for future in [pool.submit(advance, block) for block in blocks]:
-                        future.result()
-                if band_acc is not None and pool is None:
-                    band_acc.add_chunk(band_buffer, first)
-                elif band_acc is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
-                    m = end - first
-                    parts = [(m * i // n_threads, m * (i + 1) // n_threads) for i in range(n_threads)]
-                    for future in [pool.submit(band_acc.add_chunk, band_buffer, first, part) for part in parts]:
-                        future.result()
+                _each(pool, advance, blocks)
+                if band_acc is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
+                    _each(pool, lambda points: band_acc.add_chunk(band_buffer, first, points),
+                          _split(end - first, n_threads))
                 k0 += n
                 if progress is not None:
                     progress(k0, n_steps)
