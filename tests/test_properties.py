@@ -80,15 +80,25 @@ def test_wrap_angle_is_the_modulo_formula_bit_for_bit(a):
 @given(w_R=st.floats(-300, 300), w_L=st.floats(-300, 300), width=st.floats(0.3, 100.0),
        n=st.integers(1, 25), low=st.floats(-80, 0), span=st.floats(0.1, 160))
 @example(w_R=33.3, w_L=33.3, width=2.0, n=10, low=-40.0, span=80.0)  # the paper: 3 far neurons at exactly 0
+@example(w_R=0.0, w_L=1e-05, width=1.0, n=2, low=0.0, span=5.0)  # a fused multiply-add moves the exponent 1 ulp
 def test_rbf_basis_is_exp_of_every_exponent_bit_for_bit(w_R, w_L, width, n, low, span):
     """(27) with the far neurons set to 0 without exp: exactly the neurons whose exp underflows to 0 are skipped,
-    the others are exp of their exponent (to the last ulp; the same libm gives the same bits)."""
+    the others are exp of their exponent (to the last ulp; the same libm gives the same bits).
+
+    The exponent is the law's own (``rbf.exponent``): compiled, numba may fuse ``a*a + b*b`` into one FMA on CPUs
+    that have it, one rounding fewer than Python's, and exp turns that last-bit difference of an exponent of -25
+    into 25 ulp of phi (seen here on an AVX-512 CPU, w = (0, 1e-5), c = 5). The exponent itself must agree with
+    the formula to 2 ulp: the fused and the unfused sum differ by at most the rounding of one square (1 ulp of the
+    sum), and the product with -1/(2 sigma^2) by at most one more."""
     nn = rbf.RBFNetworkObserver(n_neurons=n, width=width, learning_rate=50.0, center_min=low, center_max=low + span)
     p, centers = nn.law_parameters(), nn.centers
     assert [rbf.center(p, j) for j in range(n)] == list(centers)  # the laws' c_j are numpy.linspace's, exactly
+    exponents = np.array([rbf.exponent(p, j, w_R, w_L) for j in range(n)])
+    formula = np.array([((w_R - c) ** 2 + (w_L - c) ** 2) * (-0.5 / (width * width)) for c in centers])
+    np.testing.assert_array_max_ulp(exponents, formula, maxulp=2)
     phi = np.full(n, np.nan)
     rbf.basis(p, phi, w_R, w_L)
-    expected = [math.exp(((w_R - c) ** 2 + (w_L - c) ** 2) * (-0.5 / (width * width))) for c in centers]
+    expected = [math.exp(x) for x in exponents]
     assert [v == 0.0 for v in phi] == [v == 0.0 for v in expected]  # exp's own underflow to exactly 0
     np.testing.assert_allclose(phi, expected, rtol=4e-16, atol=0.0)
 
