@@ -227,3 +227,89 @@ def test_the_sweep_composer_refuses_what_hydra_refuses(bad):
     with pytest.raises((HydraException, OmegaConfBaseException)) as ours:
         JobComposer().compose(bad)
     assert type(ours.value) is type(full.value)
+
+
+def _hydra_loader_and_master(hydra_overrides=("hydra.sweep.dir=/tmp/ddmr-test-sweep",)):
+    """Hydra's own config loader on the packaged config and a multirun master config, as ``ddmr run -m`` has."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+
+    from ddmr_cli.cli.config import _initialized
+
+    with _initialized():
+        loader = GlobalHydra.instance().config_loader()
+    master = loader.load_configuration("config", overrides=list(hydra_overrides), run_mode=RunMode.MULTIRUN)
+    return loader, master
+
+
+@pytest.mark.parametrize("overrides", JOB_OVERRIDES, ids=lambda o: " ".join(o) or "none")
+def test_the_sweepers_loader_gives_hydras_job_config(overrides):
+    """hydra/sweeper=ddmr hands Hydra's sweeper and launchers a loader that derives each job from one composition
+    per set of group choices: every kind of override gives Hydra's own job config, hydra node included (the
+    task overrides, override_dirname, choices)."""
+    from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+
+    loader, master = _hydra_loader_and_master(["hydra.sweep.dir=/tmp/ddmr-test-sweep", "hydra.job.chdir=false"])
+    ours = SweepConfigLoader(loader)
+    ours.load_sweep_config(master, ["run.base_seed=1"])  # a skeleton from an earlier job must not leak
+    full = loader.load_sweep_config(master, list(overrides))
+    for _ in range(2):  # the second time from the cached skeleton
+        fast = ours.load_sweep_config(master, list(overrides))
+        assert OmegaConf.to_container(fast) == OmegaConf.to_container(full)
+        assert OmegaConf.is_struct(fast)
+    assert fast.hydra.job.override_dirname == full.hydra.job.override_dirname
+    assert list(fast.hydra.overrides.task) == [o for o in overrides if not o.startswith("hydra.")]
+
+
+def test_the_sweepers_loader_travels_with_its_skeletons():
+    """A launcher pickles the loader to its workers: they derive their jobs from the skeletons the main process
+    composed while validating the sweep, without composing again."""
+    import pickle
+
+    from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+
+    loader, master = _hydra_loader_and_master()
+    ours = SweepConfigLoader(loader)
+    expected = ours.load_sweep_config(master, ["controller=pid", "run.base_seed=3"])
+    shipped = pickle.loads(pickle.dumps(ours))
+
+    def no_composition(*args, **kwargs):
+        raise AssertionError("composed again")
+
+    shipped.inner.load_configuration = no_composition
+    job = shipped.load_sweep_config(master, ["controller=pid", "run.base_seed=3"])
+    assert OmegaConf.to_container(job) == OmegaConf.to_container(expected)
+    assert shipped.load_sweep_config(master, ["controller=pid", "run.base_seed=4"]).run.base_seed == 4
+    with pytest.raises(AssertionError, match="composed again"):  # another set of group choices composes
+        shipped.load_sweep_config(master, ["controller=smc"])
+
+
+@pytest.mark.parametrize("bad", [["run.n_runs=many"], ["run.nruns=5"], ["controller=nope"]])
+def test_the_sweepers_loader_refuses_what_hydra_refuses(bad):
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+
+    loader, master = _hydra_loader_and_master()
+    with pytest.raises((HydraException, OmegaConfBaseException)) as full:
+        loader.load_sweep_config(master, bad)
+    with pytest.raises((HydraException, OmegaConfBaseException)) as ours:
+        SweepConfigLoader(loader).load_sweep_config(master, bad)
+    assert type(ours.value) is type(full.value)
+
+
+@pytest.mark.parametrize("overrides", JOB_OVERRIDES[:6] + [["+tags.note=a: b", "+tags.when='2026-11-23'",
+                                                          "simulation.dt=1e-05", "control.rate=null"]],
+                         ids=lambda o: " ".join(o) or "none")
+def test_a_jobs_config_file_is_omegaconfs_yaml(overrides):
+    """Jobs write their resolved config with PyYAML's C emitter (io.yaml_text): the same text OmegaConf prints,
+    which reads back to the same values."""
+    from ddmr_cli.cli import io
+    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.cli.config.build import result_config
+
+    container = result_config(compose_config(overrides))
+    text = io.yaml_text(container)
+    assert text == OmegaConf.to_yaml(OmegaConf.create(container), resolve=True)
+    assert OmegaConf.to_container(OmegaConf.create(text)) == container

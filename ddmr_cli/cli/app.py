@@ -19,7 +19,7 @@ import time
 import traceback
 from pathlib import Path
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from ddmr_cli.cli import io, jobdir
 from ddmr_cli.errors import DDMRError
@@ -167,7 +167,7 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
     result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
                       bands=bool(cfg.run.bands))
-    io.write_text(out / io.CONFIG, OmegaConf.to_yaml(OmegaConf.create(result_config(cfg)), resolve=True))
+    io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg)))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
     if result.bands:

@@ -19,7 +19,7 @@ import logging
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
@@ -55,13 +55,15 @@ def expand_jobs(overrides: Iterable[str], sweeper_params: dict[str, Any]) -> lis
     return BasicSweeper.split_arguments(parsed, None)[0]
 
 
-def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_sep: str = "=") -> str:
+def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_sep: str = "=",
+                parse: Callable[[list[str]], list] | None = None) -> str:
     """Hydra's ``hydra.job.override_dirname`` of a job's overrides (made safe by the ``ddmr.jobdir`` resolver of
-    the default ``hydra.sweep.subdir``, :func:`ddmr_cli.cli.jobdir.safe_name`)."""
+    the default ``hydra.sweep.subdir``, :func:`ddmr_cli.cli.jobdir.safe_name`); ``parse``: Hydra's override
+    parser, or one that remembers the lines it parsed (:class:`~ddmr_cli.cli.config.compose_once.OverrideParser`)."""
     from hydra._internal.config_loader_impl import get_overrides_dirname
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    parsed = OverridesParser.create().parse_overrides(list(job_overrides))
+    parsed = (parse or OverridesParser.create().parse_overrides)(list(job_overrides))
     return get_overrides_dirname(parsed, exclude_keys=list(exclude_keys), item_sep=item_sep, kv_sep=kv_sep)
 
 
@@ -92,8 +94,11 @@ def plan_jobs(overrides: Iterable[str], cfg: DictConfig) -> list[dict]:
     scratch = OmegaConf.create(OmegaConf.to_container(root, resolve=False))  # one copy for every job's subdir
     if "job" not in scratch.hydra:
         scratch.hydra.job = {}
-    return [{"dir": _subdir(scratch, job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep), num), "overrides": job}
-            for num, job in enumerate(jobs)]
+    from ddmr_cli.cli.config.compose_once import OverrideParser
+
+    parse = OverrideParser().parse  # a sweep's jobs share most override lines: each is parsed once
+    return [{"dir": _subdir(scratch, job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep, parse), num),
+             "overrides": job} for num, job in enumerate(jobs)]
 
 
 def shared_dir(plan: list[dict]) -> tuple[dict, dict] | None:

@@ -8,6 +8,7 @@ from typing import Any, Callable, Iterator, Sequence
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
+from hydra_plugins.ddmr_sweeper import ddmr_sweeper  # noqa: F401  (registers hydra/sweeper=ddmr, conf/config.yaml)
 from ddmr_cli.cli.config.build import build_simulation, config_hash, seeds_of
 from ddmr_cli.cli.config.validate import kept_seeds, validate_config
 
@@ -66,43 +67,40 @@ class JobComposer:
     (``controller=pid``, ``+experiment=table4``), then the remaining value overrides applied in order to the
     result (``ConfigLoaderImpl._apply_overrides_to_config``, struct mode on). A sweep of values (seeds, gains,
     parameters of a study) has one set of group choices, so the first stage, about 0.12 s a job, is done once
-    and each job costs a copy and its value overrides. The split follows Hydra's own rule (an override is a
-    config override when its key is not a config group or its value is a dict). Any override of another form
-    (a package ``@``, a delete of a group), and any job of a user's config dir (``--config-path``,
-    ``--config-dir``), composes in full. tests/test_config.py checks the result
-    against a full composition for every kind of override.
+    and each job costs a copy and its value overrides, by the rule of :mod:`ddmr_cli.cli.config.compose_once`
+    (which Hydra's own composition of the jobs, in the sweeper and the launchers, also follows). Any job of a
+    user's config dir (``--config-path``, ``--config-dir``) composes in full. tests/test_config.py checks the
+    result against a full composition for every kind of override.
     """
 
     def __init__(self, config_name: str = "config", config_dir: str | None = None, extra: Sequence[str] = ()):
+        from ddmr_cli.cli.config.compose_once import Skeletons
+
         self.config_name, self.config_dir, self.extra = config_name, config_dir, list(extra)
-        self._skeletons: dict[tuple[str, ...], DictConfig] = {}
+        self._skeletons = Skeletons()
         self._groups: dict[str, bool] = {}
 
     def compose(self, overrides: Sequence[str]) -> DictConfig:
         """The job's config, without the hydra node: equal to ``compose_config(overrides + extra)``."""
-        import copy
-
-        from hydra._internal.config_loader_impl import ConfigLoaderImpl
-        from hydra.core.override_parser.overrides_parser import OverridesParser
         from omegaconf import open_dict
+
+        from ddmr_cli.cli.config.compose_once import split_overrides
 
         full = [*overrides, *self.extra]
         if self.config_dir or self.extra:  # the groups of a user's config dirs: Hydra's repository of the job
             return compose_config(full, self.config_name, config_dir=self.config_dir)
-        parsed = OverridesParser.create().parse_overrides(full)
-        groups, values = [], []
-        for o in parsed:
-            if o.package is not None or (o.is_delete() and self._is_group(o.key_or_group)):
-                return compose_config(full, self.config_name)
-            (values if isinstance(o.value(), dict) or not self._is_group(o.key_or_group) else groups).append(o)
-        key = tuple(o.input_line for o in groups)
-        if key not in self._skeletons:
-            self._skeletons[key] = compose_config(list(key), self.config_name, return_hydra_config=True)
-        cfg = copy.deepcopy(self._skeletons[key])
-        ConfigLoaderImpl._apply_overrides_to_config(values, cfg)
-        with open_dict(cfg):
-            del cfg["hydra"]
-        return cfg
+        split = split_overrides(self._skeletons.parse(full), self._is_group)
+        if split is None:
+            return compose_config(full, self.config_name)
+        groups, values = split
+
+        def skeleton() -> DictConfig:
+            cfg = compose_config([o.input_line for o in groups], self.config_name, return_hydra_config=True)
+            with open_dict(cfg):
+                del cfg["hydra"]
+            return cfg
+
+        return self._skeletons.job(tuple(o.input_line for o in groups), skeleton, values)
 
     def _is_group(self, key: str) -> bool:
         if key not in self._groups:
