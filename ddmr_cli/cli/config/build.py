@@ -28,7 +28,7 @@ NON_RESULT_KEYS = ("run.plots", "run.progress", "run.threads", "run.max_memory_g
 
 def check_targets(node: Any, path: str) -> None:
     if isinstance(node, DictConfig):
-        target = node.get("_target_") if "_target_" in node else None
+        target = node.get("_target_") if "_target_" in node.keys() else None
         if target is not None and not str(target).startswith(ALLOWED_TARGET_PREFIX):
             raise ConfigError(f"{path}._target_", target, f"only {ALLOWED_TARGET_PREFIX}* classes may be instantiated")
         for key in node:

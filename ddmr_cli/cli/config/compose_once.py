@@ -57,6 +57,9 @@ class OverrideParser:
             self._parsed.update(zip(new, OverridesParser.create().parse_overrides(new)))
         return [self._parsed[line] for line in lines]
 
+    def __getstate__(self) -> dict:  # pickled to every batch of jobs: the parsed lines stay (they grow with jobs)
+        return {**self.__dict__, "_parsed": {}}
+
 
 class Skeletons(OverrideParser):
     """Composed skeletons by key, each kept pickled (a fresh copy is ``pickle.loads``: 3 ms against ``deepcopy``'s

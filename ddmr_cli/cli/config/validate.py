@@ -126,10 +126,12 @@ def validate_cluster(cluster: DictConfig | None) -> None:
 
 
 def _targets(node: DictConfig, path: str) -> Iterator[tuple[str, Any]]:
-    """(path, target) of every node with a ``_target_`` (values other than targets are not resolved)."""
-    if "_target_" in node:
+    """(path, target) of every node with a ``_target_`` (values other than targets are not resolved). Keys are
+    looked up in ``keys()``: ``in`` on a structured node raises and catches an error for every absent key."""
+    keys = node.keys()
+    if "_target_" in keys:
         yield path, node.get("_target_")
-    for key in node:
+    for key in keys:
         child = node._get_node(key)
         if key != "_target_" and isinstance(child, DictConfig) and not child._is_none():
             yield from _targets(node[key], f"{path}.{key}" if path else str(key))
