@@ -2,7 +2,10 @@
 
 Prints the machine line, then
 1. engine throughput (simulated control steps per second on one core) at batch sizes 1, 50 and 1000 for each
-   controller, on every core, as plain Python (the fallback), and the compile and cache-load times;
+   controller; for smc_ndo and smc_ndo_nno at 50 and 1000 the engine beside the hand-fused reference kernel of
+   the same loop on the same noise streams (:mod:`ddmr_cli.bench.reference`), timed in the same process, and the
+   ratio (the target: the engine at most 2x slower); on every core, as plain Python (the fallback), and the
+   compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
 3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it;
 4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only);
@@ -25,6 +28,10 @@ import time
 from pathlib import Path
 
 CONTROLLERS = ("pid", "smc", "smc_ndo", "smc_ndo_nno")
+#: the controllers the reference kernel runs (ddmr_cli/bench/reference.py)
+REFERENCE_CONTROLLERS = ("smc_ndo", "smc_ndo_nno")
+#: the engine may be at most this many times slower than the reference kernel (the issue's target)
+REFERENCE_TARGET = 2.0
 
 
 def machine_line() -> str:
@@ -56,6 +63,24 @@ def engine_throughput(batch: int, controller: str, duration: float, threads: int
     started = time.perf_counter()
     simulate(sim, range(batch), threads=threads)
     return batch * sim.n_steps / (time.perf_counter() - started)
+
+
+def reference_comparison(batch: int, controller: str, duration: float, repeats: int = 3) -> tuple[float, float]:
+    """Median throughput [steps/s] of the engine and of the reference kernel (lanes layout) on the same batch,
+    timed alternately ``repeats`` times each in this process, one core; both warmed up first (imports, compiled
+    code loaded or compiled)."""
+    import statistics
+
+    from ddmr_cli.bench.reference import reference_throughput
+
+    sim = _simulation(controller, duration)
+    engine_throughput(1, controller, 0.02)
+    reference_throughput(_simulation(controller, 0.02), 1)
+    engine, reference = [], []
+    for _ in range(repeats):
+        engine.append(engine_throughput(batch, controller, duration))
+        reference.append(reference_throughput(sim, batch))
+    return statistics.median(engine), statistics.median(reference)
 
 
 def python_throughput(controller: str, duration: float) -> float:
@@ -115,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         engine_throughput(1, controller, 0.02)  # warm-up (imports, cache load)
         figures = [engine_throughput(b, controller, durations[b]) for b in batches]
         print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
+    reference_lines(tuple(b for b in batches if b > 1), durations)
     cores, big = thread_count(0), batches[-1]
     one = engine_throughput(big, "smc_ndo_nno", durations[big], threads=1)
     many = engine_throughput(big, "smc_ndo_nno", durations[big], threads=0)
@@ -157,6 +183,30 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(work, ignore_errors=True)
     control_step_cost(quick)
     return 0
+
+
+def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repeats: int = 3) -> None:
+    """Section 1's comparison with the reference kernel (:func:`reference_comparison`), one line per controller and
+    batch size."""
+    from ddmr_cli.compiled import jit_enabled
+    from ddmr_cli.errors import ConfigError
+
+    print(f"   against the reference kernel (ddmr_cli/bench/reference.py: the same loop and noise streams hand-fused "
+          f"into one numba loop, runs as its SIMD axis, Table 4 metrics only; the engine as `ddmr run` runs it, with "
+          f"every metric, segment and seed band), one core, median of {repeats} alternating runs each:")
+    if not jit_enabled():
+        print("   (skipped: the reference kernel is compiled code, and numba is off)")
+        return
+    for controller in REFERENCE_CONTROLLERS:
+        for batch in batches:
+            try:
+                engine, reference = reference_comparison(batch, controller, durations[batch], repeats)
+            except ConfigError as exc:  # the packaged config moved off the loop the kernel runs
+                print(f"   {controller:<14}batch {batch:<6}(skipped: {exc})")
+                continue
+            print(f"   {controller:<14}batch {batch:<6}engine {engine / 1e6:7.3f} M/s, reference "
+                  f"{reference / 1e6:7.3f} M/s: engine is {reference / engine:.2f}x slower than the reference "
+                  f"(target <= {REFERENCE_TARGET:g}x)")
 
 
 def cost_lines(rows: list[dict]) -> list[str]:
