@@ -65,8 +65,7 @@ from ddmr_cli.control import rbf
 from ddmr_cli.control.smc import SMC
 from ddmr_cli.engine.noise import NoiseStreams, ou_coefficients
 # _initial_wheel_speeds: the engine's own rolling start (read, not copied)
-from ddmr_cli.engine.simulation import (CHUNK_BUDGET, MAX_CHUNK_STEPS, MIN_CHUNK_STEPS, Simulation,
-                                        _initial_wheel_speeds)
+from ddmr_cli.engine.simulation import Simulation, _initial_wheel_speeds, chunk_steps
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel
 from ddmr_cli.model.trajectory import reference_table
@@ -628,7 +627,7 @@ def reference_metrics(sim: Simulation, seeds: Sequence[int], layout: str = "lane
     M[DEV_MAX], M[DIV_STEP] = -np.inf, -1.0
     W = np.zeros((max(nn, 1), 2, n_runs))
     kernel = _CHUNK_KERNELS[layout]
-    chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (8 * NoiseStreams.channels * n_runs))))
+    chunk = chunk_steps(8 * NoiseStreams.channels, n_runs)
     xi = None
     with np.errstate(all="ignore"):
         k0 = 0

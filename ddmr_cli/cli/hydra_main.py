@@ -10,7 +10,7 @@ from omegaconf import DictConfig
 from ddmr_cli.cli import config  # noqa: F401  (registers the config schemas)
 from ddmr_cli.cli.app import run_job
 
-# hydra/sweeper=ddmr (conf/config.yaml): Hydra's plugin scan does not see an editable install's hydra_plugins
+# hydra/sweeper=ddmr (conf/launcher/*.yaml): Hydra's plugin scan does not see an editable install's hydra_plugins
 Plugins.instance().register(DdmrSweeper)
 
 

@@ -44,6 +44,12 @@ MAX_CHUNK_STEPS = 4096
 MIN_CHUNK_STEPS = 64
 
 
+def chunk_steps(bytes_per_run_step: int, n_runs: int) -> int:
+    """Steps per chunk: as many as :data:`CHUNK_BUDGET` bytes of per-step buffers hold for ``n_runs`` runs,
+    within [:data:`MIN_CHUNK_STEPS`, :data:`MAX_CHUNK_STEPS`]."""
+    return int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (bytes_per_run_step * n_runs))))
+
+
 @dataclass
 class Simulation:
     """Everything one batch of runs needs, as plain objects (no Hydra here).
@@ -271,7 +277,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     slot[keep_idx] = np.arange(len(keep_idx))
     bytes_per_run_step = (_BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
                           + (8 * len(NOISE_CHANNELS) if sensor_noise is not None else 0))
-    chunk = int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (bytes_per_run_step * n_runs))))
+    chunk = chunk_steps(bytes_per_run_step, n_runs)
     plant, xi = sim.robot.plant(), None
     n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
     blocks = _split(n_runs, n_threads)

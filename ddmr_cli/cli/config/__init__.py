@@ -8,7 +8,7 @@ from typing import Any, Callable, Iterator, Sequence
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
-from hydra_plugins.ddmr_sweeper import ddmr_sweeper  # noqa: F401  (registers hydra/sweeper=ddmr, conf/config.yaml)
+from hydra_plugins.ddmr_sweeper import ddmr_sweeper  # noqa: F401  (registers hydra/sweeper=ddmr, conf/launcher/*.yaml)
 from ddmr_cli.cli.config.build import build_simulation, config_hash, seeds_of
 from ddmr_cli.cli.config.validate import kept_seeds, validate_config
 
