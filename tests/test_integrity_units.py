@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import errno
 import os
+import socket
 import types
 
 import pytest
@@ -94,18 +95,32 @@ def test_a_job_that_fails_while_staging_shows_nothing(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == [] and [p.name for p in tmp_path.iterdir()] == ["job"]
 
 
+def _dead_pid() -> int:
+    import subprocess
+
+    proc = subprocess.Popen(["true"])
+    proc.wait()
+    return proc.pid
+
+
 def test_begin_removes_the_summary_old_outputs_and_stale_temporaries_only(tmp_path):
     out, _ = _job(tmp_path)
+    dead = _dead_pid()
     (out / ".hydra").mkdir()
     (out / "ddmr.log").write_text("log")
-    (out / ".metrics.csv.123.ab.tmp").write_text("stale")
-    stale = tmp_path / ".job.4242.tmp"
+    (out / f".metrics.csv.{dead}.0123abcd.tmp").write_text("stale")   # an atomic write of a killed job
+    (out / ".venv.tmp").mkdir()                                       # a user's dir that looks temporary
+    (out / f".notes.{os.getpid()}.0123abcd.tmp").write_text("live")   # a live process's temporary
+    stale = tmp_path / f".job.{dead}.tmp"
+    io.write_json(stale / jobdir.STAGE_MARK, {"pid": dead, "host": socket.gethostname()})
+    unmarked = tmp_path / f".job.{dead + 1}.tmp"  # the name of a staging dir, but not marked: not ours
     other = tmp_path / ".job.x.4242.tmp"  # the staging dir of another job (named job.x): not ours
-    stale.mkdir()
+    unmarked.mkdir()
     other.mkdir()
     jobdir.begin(out)
-    assert sorted(p.name for p in out.iterdir()) == [".hydra", "ddmr.log"]
-    assert not stale.exists() and other.exists()
+    assert sorted(p.name for p in out.iterdir()) == sorted([f".notes.{os.getpid()}.0123abcd.tmp", ".hydra",
+                                                            ".venv.tmp", "ddmr.log"])
+    assert not stale.exists() and other.exists() and unmarked.exists()
 
 
 def test_atomic_writes_follow_the_umask_and_name_the_path_of_a_fault(tmp_path):

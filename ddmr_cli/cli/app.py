@@ -69,7 +69,7 @@ def run_job(cfg: DictConfig, task=None) -> dict:
     digest = config_hash(cfg)
     previous = io.read_summary(out)
     if previous and previous.get("status") == "complete" and previous.get("config_hash") == digest:
-        problem = jobdir.verify(out, previous)
+        problem = jobdir.verify(out, previous, options=jobdir.output_options(cfg))
         if problem is None:
             log.info("skipped %s: complete results with the same config hash %s, every file verified", out, digest)
             return previous
@@ -77,32 +77,42 @@ def run_job(cfg: DictConfig, task=None) -> dict:
     started = time.perf_counter()
     base = {"overrides": overrides, "config_hash": digest, "controller": None, "scenario": None}
     try:
-        jobdir.begin(out)
+        jobdir.begin(out)  # refuses (nothing changed) when something it did not write is in the way
+    except OSError as exc:
+        return _failed(exc, base, started, out, record=False)
+    try:
         sim = validate_config(cfg)
         base["controller"], base["scenario"] = _names(cfg)
         summary = (task or execute)(cfg, out, overrides, digest, sim)
     except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
-        error = f"{type(exc).__name__}: {exc}"
-        fault = jobdir.fault(exc, out) if isinstance(exc, OSError) else None
-        log.error("job failed: %s", error)
-        failed = {**base, "status": "failed", "error": error, "traceback": traceback.format_exc(),
-                  "wall_time": time.perf_counter() - started}
-        if fault is not None:
-            failed["fault"] = {"path": fault.path, "reason": fault.reason}
+        return _failed(exc, base, started, out)
+    return summary
+
+
+def _failed(exc: Exception, base: dict, started: float, out: Path, record: bool = True) -> dict:
+    """A failed job: its summary records the failure (``record``: not when the job was refused because a file
+    it did not write is in the way, so nothing of the dir changes); a single run prints one line and exits."""
+    error = f"{type(exc).__name__}: {exc}"
+    fault = jobdir.fault(exc, out) if isinstance(exc, OSError) else None
+    log.error("job failed: %s", error)
+    failed = {**base, "status": "failed", "error": error, "traceback": traceback.format_exc(),
+              "wall_time": time.perf_counter() - started}
+    if fault is not None:
+        failed["fault"] = {"path": fault.path, "reason": fault.reason}
+    if record:
         try:
-            io.write_json(out / io.SUMMARY, failed)
+            io.write_summary(out, failed)
         except OSError:  # the fault itself (disk full, read-only): nothing more can be recorded
             pass
-        if not _in_sweep():
-            if fault is not None:  # a file-system fault: one line naming the path, exit 1
-                print(f"ddmr: error: {fault.path}: {fault.reason}", file=sys.stderr)
-                raise SystemExit(1) from None
-            if isinstance(exc, (DDMRError, ValueError)):  # a bad value: one line, exit 2, never a traceback
-                print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
-                raise SystemExit(2) from None
-            raise
-        return {key: failed[key] for key in failed if key != "traceback"}
-    return summary
+    if not _in_sweep():
+        if fault is not None:  # a file-system fault: one line naming the path, exit 1
+            print(f"ddmr: error: {fault.path}: {fault.reason}", file=sys.stderr)
+            raise SystemExit(1) from None
+        if isinstance(exc, (DDMRError, ValueError)):  # a bad value: one line, exit 2, never a traceback
+            print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
+            raise SystemExit(2) from None
+        raise exc
+    return {key: failed[key] for key in failed if key != "traceback"}
 
 
 def _exit_with_parent() -> None:
@@ -185,6 +195,7 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
         "scenario": result.scenario,
         "overrides": overrides or [],
         "config_hash": digest or config_hash(cfg),
+        "options": jobdir.output_options(cfg),
         "parameters": sim.controller.parameters(),
         "seeds": [result.seeds[0], result.seeds[-1]],
         "series_seeds": list(result.series),

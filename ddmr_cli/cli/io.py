@@ -126,6 +126,23 @@ def write_bands(path: Path, bands: dict[str, np.ndarray]) -> Path:
     return atomic_write(path, _write)
 
 
+def seal(summary: dict) -> str:
+    """SHA-256 of a summary as JSON (sorted keys, without its ``seal``), computed on the summary as it reads back
+    from its file: a summary whose seal does not match was changed after the job wrote it."""
+    import hashlib
+
+    body = {k: v for k, v in summary.items() if k != "seal"}
+    canonical = json.loads(json.dumps(body, default=_json_default, allow_nan=True))
+    return hashlib.sha256(json.dumps(canonical, sort_keys=True, allow_nan=True).encode()).hexdigest()
+
+
+def write_summary(job_dir: Path, summary: dict) -> dict:
+    """Write a job's ``summary.json`` with its :func:`seal`; returns the summary as written."""
+    summary = {**{k: v for k, v in summary.items() if k != "seal"}, "seal": seal(summary)}
+    write_json(Path(job_dir) / SUMMARY, summary)
+    return json.loads(json.dumps(summary, default=_json_default, allow_nan=True))
+
+
 def read_series(path: Path) -> dict[int, dict[str, np.ndarray]]:
     """Inverse of :func:`write_series`."""
     out: dict[int, dict[str, np.ndarray]] = {}

@@ -3,13 +3,19 @@
 - :func:`safe_name`: a job dir name from its overrides that is a single path component of bounded length (a
   readable prefix and a short hash when the overrides hold ``/``, spaces, quotes or run long); the full
   overrides are recorded inside the job dir (``summary.json``, ``.hydra/overrides.yaml``).
-- :class:`Stage`: a job writes every output file into a temporary sibling dir (``.<name>.<pid>.tmp``), then
-  moves them into the job dir and writes ``summary.json`` last, with the size and SHA-256 of every file. Before
-  that, :func:`begin` removes the old ``summary.json`` first, then the old outputs and stale ``*.tmp`` leftovers,
-  so a dir never shows an old summary beside new files.
-- :func:`verify`: a summary's files are there with the recorded sizes and hashes (resume reruns a job otherwise).
+- :class:`Stage`: a job writes every output file into a temporary sibling dir (``.<name>.<pid>.tmp``, marked as
+  ddmr's by a ``.ddmr-stage`` file), then moves them into the job dir and writes ``summary.json`` last (sealed:
+  :func:`ddmr_cli.cli.io.seal`), with the size and SHA-256 of every file. Before that, :func:`begin` removes the
+  old ``summary.json`` first, then the old outputs the old summary lists, and stale temporaries ddmr named.
+- Nothing else is ever deleted: :func:`check_clear` refuses a dir where a file or dir sits at an output's name
+  that no summary of that dir lists (a user's ``config.yaml``, ``plots/holiday.png``), and a listed file whose
+  bytes differ from its digest is kept, renamed ``<name>.changed``.
+- :func:`verify`: a summary's files are there with the recorded sizes and hashes and, when resuming, the summary
+  is unchanged (its seal) and was written with the same output options (``run.plots``).
 - :class:`DirLock`: an exclusive ``fcntl`` lock on ``<dir>/.ddmr.lock`` for the whole ``ddmr run``; a second
-  writer is refused with the holder's pid, host and command.
+  writer is refused with the holder's pid, host and command, and so is a dir inside, or containing, the dir of
+  another run or sweep (a ``.ddmr.lock`` above or below it), or a single run into a sweep's dir and back.
+- :func:`inside`: a path resolved (symlinks followed) lies strictly under the dir that owns it.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import errno
 import hashlib
 import json
+import logging
 import os
 import re
 import shutil
@@ -27,7 +34,21 @@ from pathlib import Path
 
 from ddmr_cli.cli import io
 
+log = logging.getLogger("ddmr")
+
 LOCK = ".ddmr.lock"
+#: the file that marks a staging dir as ddmr's: ``{"pid": ..., "host": ...}``
+STAGE_MARK = ".ddmr-stage"
+#: the digests of the files being moved in, written before the moves and removed after the summary
+COMMIT = ".ddmr-commit.json"
+#: the name whose staging dir (``.sweep-tables.<pid>.tmp``) a sweep writes its tables into
+TABLES_STAGE = "sweep-tables"
+#: output options that change which files a job writes but not its numbers (outside the config hash)
+OUTPUT_OPTIONS = ("run.plots",)
+#: a temporary file of :func:`ddmr_cli.cli.io.atomic_write`: ``.<name>.<pid>.<8 hex>.tmp``
+_ATOMIC_TMP = re.compile(r"\.(?P<name>.+)\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp")
+#: most dirs looked at below an output dir for the lock of another run (a bound for ``hydra.run.dir=~``)
+_MAX_WALK = 20000
 #: job outputs (besides summary.json) a job writes; removed before a job writes new ones
 OUTPUTS = (io.CONFIG, io.METRICS_CSV, io.SEGMENTS_CSV, io.SERIES, io.BANDS, io.PLOTS_DIR)
 #: the files a job's results cannot do without (tables and config); series and plots serve figures only
@@ -99,14 +120,27 @@ def _files(root: Path) -> list[str]:
     return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
 
 
-def verify(job_dir: Path, summary: dict, strict: bool = True) -> str | None:
+def output_options(cfg) -> dict:
+    """The values of :data:`OUTPUT_OPTIONS` in ``cfg``: a job is complete only for the options it ran with."""
+    from omegaconf import OmegaConf
+
+    return {key: OmegaConf.select(cfg, key, default=None) for key in OUTPUT_OPTIONS}
+
+
+def verify(job_dir: Path, summary: dict, strict: bool = True, options: dict | None = None) -> str | None:
     """None when every file ``summary`` records is in ``job_dir`` with its size and hash; else the reason.
 
     ``strict=False`` (reading results, not resuming) lets the files only figures need (``series.npz``,
-    ``plots/``) be missing, as when a user drops them to save space; a file that is there must still match."""
+    ``plots/``) be missing, as when a user drops them to save space; a file that is there must still match.
+    ``strict=True`` (resuming) also needs the summary as the job wrote it (its seal) and, given ``options``,
+    the same output options (:func:`output_options`)."""
     digests = summary.get("digests")
     if not isinstance(digests, dict) or not digests:
         return "its summary records no file digests"
+    if strict and summary.get("seal") != io.seal(summary):
+        return f"{io.SUMMARY} was changed after the job wrote it (its seal does not match)"
+    if options is not None and "options" in summary and summary["options"] != options:  # (study tasks: none)
+        return f"it was written with {summary.get('options')}, this run asks for {options}"
     for name, want in digests.items():
         path = Path(job_dir) / name
         if not path.is_file():
@@ -120,69 +154,225 @@ def verify(job_dir: Path, summary: dict, strict: bool = True) -> str | None:
     return None
 
 
-# --- staged outputs ------------------------------------------------------------------------------------------
+# --- what a job may delete -----------------------------------------------------------------------------------
 
 
-def _stale_stages(out: Path) -> list[Path]:
-    """Staging dirs of ``out`` left by killed processes: ``.<name>.<pid>.tmp`` beside it."""
-    pattern = re.compile(re.escape(f".{out.name}.") + r"\d+\.tmp")
-    return [p for p in out.parent.iterdir() if pattern.fullmatch(p.name)] if out.parent.is_dir() else []
+def _is_summary(data) -> bool:
+    """A summary ddmr wrote (complete or failed), not a user's ``summary.json``."""
+    return isinstance(data, dict) and data.get("status") in ("complete", "failed")
+
+
+def owned(out: Path) -> dict[str, dict]:
+    """The files of ``out`` a job provably wrote: ``{relative path: digest}`` from its summary and from the
+    record of a commit cut short (:data:`COMMIT`)."""
+    files: dict[str, dict] = {}
+    for record in (io.read_json(Path(out) / COMMIT), io.read_summary(Path(out))):
+        if isinstance(record, dict) and isinstance(record.get("digests"), dict):
+            files.update({str(k): v for k, v in record["digests"].items() if isinstance(v, dict)})
+    return files
+
+
+def _in_the_way(path: Path, what: str = "ddmr did not write it") -> FaultError:
+    return FaultError(path, f"in the way: {what} (no summary.json of this dir lists it); nothing was changed; "
+                            "move it away or choose another output dir")
+
+
+def check_clear(out: Path) -> None:
+    """Refuse (:class:`FaultError`, exit 1) when ``out`` holds, at one of the names a job writes, anything no
+    summary of ``out`` lists: a user's file or dir, a symlink, a ``summary.json`` ddmr did not write. Reads only:
+    run before anything is written, and again by :func:`begin`."""
+    out = Path(out).absolute()
+    if not os.path.lexists(out):
+        return
+    if not out.is_dir():
+        raise FaultError(out, "a file is in the way of an output dir (it exists and is not a directory)")
+    summary = out / io.SUMMARY
+    if os.path.lexists(summary) and (summary.is_symlink() or not summary.is_file()
+                                     or not _is_summary(io.read_json(summary))):
+        raise _in_the_way(summary, "it is not a summary ddmr wrote")
+    listed = owned(out)
+    for name in OUTPUTS:
+        path = out / name
+        if not os.path.lexists(path):
+            continue
+        if path.is_symlink():
+            raise _in_the_way(path, "a symlink")
+        entries = [path] if not path.is_dir() else [p for p in sorted(path.rglob("*")) if not p.is_dir()]
+        for entry in entries:
+            if entry.is_symlink() or not entry.is_file() or entry.relative_to(out).as_posix() not in listed:
+                raise _in_the_way(entry)
+
+
+def _alive(pid: int, host: str | None = None) -> bool:
+    """Whether ``pid`` runs on this host (True when it may: another host, or no permission to ask)."""
+    if host not in (None, socket.gethostname()):
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def _own_temporaries(out: Path) -> list[Path]:
+    """Temporary files of atomic writes into ``out`` whose process is gone (a killed job's)."""
+    if not Path(out).is_dir():
+        return []
+    found = []
+    for tmp in Path(out).glob(".*.tmp"):
+        m = _ATOMIC_TMP.fullmatch(tmp.name)
+        if m and tmp.is_file() and not tmp.is_symlink() and not _alive(int(m["pid"])):
+            found.append(tmp)
+    return found
+
+
+def _set_aside(path: Path) -> Path:
+    """Rename a file ddmr wrote that was changed since (it may be someone's edit) to ``<name>.changed``."""
+    target = path.with_name(path.name + ".changed")
+    n = 1
+    while os.path.lexists(target):
+        n += 1
+        target = path.with_name(f"{path.name}.changed{n}")
+    os.rename(path, target)
+    return target
 
 
 def begin(out: Path) -> None:
-    """Make ``out`` hold no results before a job writes new ones: its ``summary.json`` goes first (so no old
-    summary ever sits beside new files), then the outputs of an earlier job, stale temporary files of atomic
-    writes and stale staging dirs (this job's dir is locked and planned once, so nothing else writes them)."""
+    """Make ``out`` hold no results before a job writes new ones, deleting only what a job provably wrote.
+
+    :func:`check_clear` first (nothing changes when something is in the way); then its ``summary.json`` goes
+    (so no old summary ever sits beside new files), then every file the old summary lists: deleted when its
+    bytes are still the recorded ones, else kept as ``<name>.changed``; then stale temporaries of atomic writes
+    and ddmr's stale staging dirs (marked, their process gone)."""
     out = Path(out)
+    check_clear(out)
+    listed = owned(out)
     (out / io.SUMMARY).unlink(missing_ok=True)
-    for name in OUTPUTS:
+    for name, want in sorted(listed.items()):
         path = out / name
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        elif path.exists() or path.is_symlink():
+        if not path.is_file() or path.is_symlink() or Path(os.path.normpath(name)).parts[:1] == ("..",):
+            continue
+        if digest(path) == {"size": want.get("size"), "sha256": want.get("sha256")}:
             path.unlink()
-    if out.is_dir():
-        for tmp in out.glob(".*.tmp"):
-            _remove(tmp)
-    for stale in _stale_stages(out):
-        _remove(stale)
+        else:
+            log.warning("kept %s as %s: it differs from what the job wrote", path, _set_aside(path).name)
+    plots = out / io.PLOTS_DIR
+    if plots.is_dir() and not plots.is_symlink():
+        for sub in sorted((p for p in plots.rglob("*") if p.is_dir()), key=lambda p: -len(p.parts)):
+            _rmdir_empty(sub)
+        _rmdir_empty(plots)
+    (out / COMMIT).unlink(missing_ok=True)
+    for tmp in _own_temporaries(out):
+        tmp.unlink(missing_ok=True)
+    for stale in stale_stages(out):
+        shutil.rmtree(stale, ignore_errors=True)
 
 
-def _remove(path: Path) -> None:
-    if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path, ignore_errors=True)
-    else:
-        path.unlink(missing_ok=True)
+def _rmdir_empty(path: Path) -> None:
+    try:
+        path.rmdir()
+    except OSError:
+        pass
+
+
+def clean_leftovers(sweep_dir: Path, names) -> int:
+    """Remove what killed jobs of a sweep left that is provably ddmr's: stale staging dirs beside the planned
+    job dirs ``names`` and stale temporaries in the sweep dir and in those job dirs. Returns how many."""
+    sweep_dir = Path(sweep_dir)
+    removed = 0
+    for stale in stale_stages(sweep_dir / TABLES_STAGE):
+        shutil.rmtree(stale, ignore_errors=True)
+        removed += 1
+    for tmp in _own_temporaries(sweep_dir):
+        tmp.unlink(missing_ok=True)
+        removed += 1
+    for name in names:
+        out = sweep_dir / name
+        for stale in stale_stages(out):
+            shutil.rmtree(stale, ignore_errors=True)
+            removed += 1
+        if out.is_dir() and not out.is_symlink():
+            for tmp in _own_temporaries(out):
+                tmp.unlink(missing_ok=True)
+                removed += 1
+    return removed
+
+
+# --- staged outputs ------------------------------------------------------------------------------------------
+
+
+def _stage_owner(path: Path) -> dict | None:
+    """The pid and host a staging dir records (None: not a ddmr staging dir)."""
+    if path.is_symlink() or not path.is_dir():
+        return None
+    mark = io.read_json(path / STAGE_MARK)
+    return mark if isinstance(mark, dict) and isinstance(mark.get("pid"), int) else None
+
+
+def stale_stages(out: Path) -> list[Path]:
+    """ddmr's staging dirs of ``out`` left by killed processes: ``.<name>.<pid>.tmp`` beside it, marked with
+    :data:`STAGE_MARK`, whose process is gone; anything else of that name is left alone."""
+    out = Path(out)
+    pattern = re.compile(re.escape(f".{out.name}.") + r"\d+\.tmp")
+    if not out.parent.is_dir():
+        return []
+    found = []
+    for p in out.parent.iterdir():
+        owner = _stage_owner(p) if pattern.fullmatch(p.name) else None
+        if owner is not None and not _alive(owner["pid"], owner.get("host")):
+            found.append(p)
+    return found
 
 
 class Stage:
     """A temporary sibling dir a job writes into; :meth:`commit` moves the files into the job dir with
     ``summary.json`` (and the files' digests) last; leaving the ``with`` block without a commit removes it."""
 
-    def __init__(self, out: Path) -> None:
-        self.out = Path(out)
+    def __init__(self, out: Path, create: bool = True) -> None:
+        self.out, self.create = Path(out), create
         self.path = self.out.parent / f".{self.out.name}.{os.getpid()}.tmp"
 
     def __enter__(self) -> "Stage":
-        self.out.mkdir(parents=True, exist_ok=True)
-        _remove(self.path)
+        if self.create:
+            self.out.mkdir(parents=True, exist_ok=True)
+        if os.path.lexists(self.path):
+            if _stage_owner(self.path) is None:  # not ours: a user's dir of that name
+                raise _in_the_way(self.path, "not a staging dir of ddmr")
+            shutil.rmtree(self.path)
         self.path.mkdir()
+        try:
+            io.write_json(self.path / STAGE_MARK, {"pid": os.getpid(), "host": socket.gethostname()})
+        except BaseException:
+            shutil.rmtree(self.path, ignore_errors=True)
+            raise
         return self
 
     def __exit__(self, *exc) -> None:
-        _remove(self.path)
+        shutil.rmtree(self.path, ignore_errors=True)  # made by this process in __enter__
 
     def commit(self, summary: dict) -> dict:
         """Record the digest of every staged file in ``summary``, move the files into the job dir, then write
-        ``summary.json``; returns the summary."""
-        files = _files(self.path)
-        summary = {**summary, "files": files, "digests": {name: digest(self.path / name) for name in files}}
+        ``summary.json`` (sealed); returns the summary. The digests are written first (:data:`COMMIT`), so a
+        job killed during the moves leaves only files a later job can prove it may delete."""
+        files = [f for f in _files(self.path) if f != STAGE_MARK]
+        digests = {name: digest(self.path / name) for name in files}
+        summary = {**summary, "files": files, "digests": digests}
+        io.write_json(self.out / COMMIT, {"digests": digests})
         for name in files:
             target = self.out / name
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(self.path / name, target)
-        io.write_json(self.out / io.SUMMARY, summary)
+        summary = io.write_summary(self.out, summary)
+        (self.out / COMMIT).unlink(missing_ok=True)
         return summary
+
+
+def inside(path: Path, root: Path) -> bool:
+    """Whether ``path``, resolved (``..`` and symlinks followed), lies strictly under ``root`` resolved."""
+    real, base = Path(path).resolve(), Path(root).resolve()
+    return real != base and base in real.parents
 
 
 # --- one writer per output dir -------------------------------------------------------------------------------
@@ -200,21 +390,85 @@ def _describe(holder: dict | None) -> str:
             f"({holder.get('command')})")
 
 
+#: what marks a dir as a sweep's (its plan) and as a single run's (its summary at the top)
+_SWEEP_MARKS = ("sweep_plan.json", "multirun.yaml")
+
+
+def _held(directory: Path) -> dict | None:
+    """The holder of ``directory``'s lock while another process holds it, else None (a finished run's dir)."""
+    import fcntl
+
+    try:
+        fd = os.open(Path(directory) / LOCK, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        return read_holder(directory) or {}
+    finally:
+        os.close(fd)
+    return None
+
+
+def _claimed_below(directory: Path) -> Path | None:
+    """The first dir strictly below ``directory`` holding a ``.ddmr.lock`` (hidden dirs skipped; at most
+    :data:`_MAX_WALK` dirs looked at)."""
+    seen = 0
+    for root, dirs, files in os.walk(directory):
+        seen += 1
+        if seen > _MAX_WALK:
+            return None
+        dirs[:] = [d for d in dirs if not d.startswith(".")]
+        if LOCK in files and Path(root) != Path(directory):
+            return Path(root)
+    return None
+
+
+def tree_conflict(directory: Path, kind: str) -> str | None:
+    """Why ``directory`` may not be the output dir of a ``kind`` (``"run"`` or ``"sweep"``): it is inside, or
+    contains, the dir of another run or sweep (a ``.ddmr.lock`` above or below it), or it holds the other kind
+    (a single run into a sweep's dir, a sweep into a run's dir). None when it may."""
+    directory = Path(directory).resolve()
+    for parent in directory.parents:
+        if (parent / LOCK).is_file():
+            holder = _held(parent)
+            state = f"in use by {_describe(holder)}" if holder is not None else "a finished run's or sweep's dir"
+            return f"inside {parent}, the output dir of another ddmr run or sweep ({state}); choose a dir outside it"
+    below = _claimed_below(directory) if directory.is_dir() else None
+    if below is not None:
+        return (f"contains {below}, the output dir of another ddmr run or sweep; choose a dir that holds no other "
+                f"run's results")
+    if kind == "run" and any((directory / m).is_file() for m in _SWEEP_MARKS):
+        return "holds a sweep (sweep_plan.json); a single run would mix its files with the sweep's; choose another dir"
+    if kind == "sweep" and _is_summary(io.read_json(directory / io.SUMMARY)):
+        return "holds a single run (summary.json); a sweep would mix its files with the run's; choose another dir"
+    return None
+
+
 class DirLock:
     """An exclusive lock on an output dir for as long as the ``with`` block lasts (``fcntl.flock`` on
     ``<dir>/.ddmr.lock``, released by the kernel when the process dies, so a killed run leaves no stale lock).
 
-    Raises :class:`LockedError` naming the holder when another process holds it, :class:`FaultError` when the
-    dir cannot be made or written (read-only, a file in the way, name too long)."""
+    With ``kind`` (``"run"`` or ``"sweep"``) the lock covers the tree: once it holds its own lock it refuses a
+    dir inside or containing another run's or sweep's dir (:func:`tree_conflict`); as every writer takes its
+    lock before it looks, of two started at once at least one sees the other. A refused lock leaves nothing
+    behind: the lock file and the dirs it made are removed.
 
-    def __init__(self, directory: Path) -> None:
+    Raises :class:`LockedError` naming the holder when another process holds it, :class:`FaultError` when the
+    dir cannot be made or written (read-only, a file in the way, name too long) or is refused."""
+
+    def __init__(self, directory: Path, kind: str | None = None, name: str = LOCK) -> None:
         self.directory = Path(directory)
+        self.kind, self.name = kind, name
         self.fd: int | None = None
 
     def __enter__(self) -> "DirLock":
         import fcntl
 
-        path = self.directory / LOCK
+        path = self.directory / self.name
+        made = [p for p in [self.directory, *self.directory.parents] if not os.path.lexists(p)]
+        existed = os.path.lexists(path)
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
@@ -226,8 +480,16 @@ class DirLock:
             os.close(fd)
             if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                 raise fault(exc) from None
-            raise LockedError(self.directory, f"in use by {_describe(read_holder(self.directory))}; wait for it "
-                                              "to finish or choose another output dir") from None
+            raise LockedError(self.directory, f"in use by {_describe(read_holder(self.directory, self.name))}; wait "
+                                              "for it to finish or choose another output dir") from None
+        conflict = tree_conflict(self.directory, self.kind) if self.kind else None
+        if conflict is not None:
+            if not existed:
+                path.unlink(missing_ok=True)
+            os.close(fd)
+            for made_dir in made:  # deepest first
+                _rmdir_empty(made_dir)
+            raise FaultError(self.directory, conflict)
         try:
             os.ftruncate(fd, 0)
             os.write(fd, (json.dumps(_holder()) + "\n").encode())
@@ -243,13 +505,14 @@ class DirLock:
             self.fd = None
 
 
-def read_holder(directory: Path) -> dict | None:
+def read_holder(directory: Path, name: str = LOCK) -> dict | None:
     """What the lock file of ``directory`` says about its holder (None when empty or unreadable)."""
     try:
-        return json.loads((Path(directory) / LOCK).read_text(encoding="utf-8"))
+        return json.loads((Path(directory) / name).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
 
 
-__all__ = ["safe_name", "digest", "verify", "begin", "Stage", "DirLock", "read_holder", "FaultError",
-           "LockedError", "fault", "LOCK", "OUTPUTS", "MAX_NAME"]
+__all__ = ["safe_name", "digest", "verify", "output_options", "owned", "check_clear", "begin", "clean_leftovers",
+           "stale_stages", "Stage", "inside", "tree_conflict", "DirLock", "read_holder", "FaultError", "LockedError",
+           "fault", "LOCK", "STAGE_MARK", "COMMIT", "OUTPUT_OPTIONS", "OUTPUTS", "MAX_NAME"]

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,11 +93,13 @@ def _explain(exc: BaseException, overrides: list[str]) -> str:
         cause = cause.__cause__
     if isinstance(cause, OmegaConfBaseException):
         key = getattr(cause, "full_key", None) or "?"
-        value = next((ov.partition("=")[2] for ov in overrides if ov.lstrip("+~").partition("=")[0] == key), None)
+        # the value the user typed: the last override of the key (Hydra applies the last one)
+        value = next((ov.partition("=")[2] for ov in reversed(overrides) if ov.lstrip("+~").partition("=")[0] == key),
+                     None)
         msg = str(getattr(cause, "msg", cause)).splitlines()[0]
         if isinstance(cause, ConfigKeyError) and "not in" in msg:
             return f"{key}={value}: unknown key ({msg})"
-        return f"{key}={value!r}: {msg}" if value is not None else f"{key}: {msg}"
+        return f"{key}={value}: {msg}" if value is not None else f"{key}: {msg}"
     if isinstance(exc, MissingConfigException):
         return str(exc).splitlines()[0]
     return " ".join(str(exc).split())
@@ -186,6 +189,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         if not multirun and len(fixed) != len(parsed):
             sweep_ov = next(o.input_line for o in parsed if o.is_sweep_override())
             raise UsageError(f"{sweep_ov}: a sweep needs --multirun (-m)")
+        _refuse_huge_sweeps(parsed)
         base = compose(fixed, hydra_node=True)
         margin = base.report.margin
         try:
@@ -208,6 +212,8 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             empty = next((o.input_line for o in parsed if o.is_sweep_override() and not list(o.sweep_string_iterator())),
                          "hydra.sweeper.params")
             raise UsageError(f"{empty}: the sweep has no jobs (an empty range or list); nothing to run")
+        if multirun:
+            _refuse_escapes(plan, [o for o in overrides if o.startswith("hydra.sweep.subdir=")])
         _refuse_shared_dirs(plan, [o for o in overrides if o.startswith("hydra.sweep.subdir=")])
         largest = None
         jobs = JobComposer(config_name, config_dir, extra)  # the defaults tree once per set of group choices
@@ -228,6 +234,8 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         raise UsageError(message(exc, current)) from None
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise UsageError(_missing_plugin(exc, overrides) or _explain(exc, overrides)) from None
+    except (MemoryError, OverflowError) as exc:  # a value too large to plan or validate
+        raise UsageError(f"{' '.join(current)}: too large to plan ({type(exc).__name__}); lower the largest value")
     pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={_override_value(out_dir)}", *session]
     return Launch(multirun, out_dir, tuple(pinned), tuple(plan) if multirun else (), bool(base.report.auto), margin,
                   study, searching)
@@ -247,6 +255,68 @@ def _refuse_shared_dirs(plan: list[dict], subdir: list[str]) -> None:
                      f"{' '.join(b['overrides'])!r} would write into one job dir {a['dir']!r}; sweep a key that names "
                      f"the dir (not one of hydra.job.config.override_dirname.exclude_keys) or give hydra.sweep.subdir "
                      f"a per-job value")
+
+
+#: the most jobs a sweep may plan (a Hydra sweep composes every job; a million would take hours to plan)
+MAX_JOBS = 100_000
+
+
+def _refuse_huge_sweeps(parsed) -> None:
+    """A sweep whose job count (the product of its swept values, counted without listing them) is over
+    :data:`MAX_JOBS`: refused, naming the largest swept override, before anything is expanded."""
+    import math
+
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
+    total, largest = 1, (0, None)
+    for o in parsed:
+        value = o.value() if o.is_sweep_override() else None
+        if isinstance(value, RangeSweep):
+            start, stop, step = value.start, value.stop, value.step or 1
+            count = max(0, math.ceil((stop - start) / step)) if step else 0
+        elif isinstance(value, ChoiceSweep):
+            count = len(value.list)
+        else:
+            continue
+        total *= max(count, 1)
+        largest = max(largest, (count, o.input_line), key=lambda c: c[0])
+    if total > MAX_JOBS:
+        raise UsageError(f"{largest[1]}: the sweep would have {total} jobs, more than {MAX_JOBS}; sweep fewer values")
+
+
+def _refuse_escapes(plan: list[dict], subdir: list[str]) -> None:
+    """A planned job dir that is not a path strictly inside the sweep dir (``hydra.sweep.subdir=../x``, an
+    absolute path, ``.``): refused, naming the ``hydra.sweep.subdir`` override."""
+    import os
+
+    for job in plan:
+        norm = os.path.normpath(job["dir"])
+        if os.path.isabs(norm) or norm == "." or norm.split(os.sep)[0] == "..":
+            raise UsageError(f"{subdir[-1] if subdir else 'hydra.sweep.subdir'}: job {' '.join(job['overrides'])!r} "
+                             f"would write into {job['dir']!r}, not a dir inside the sweep dir; give "
+                             f"hydra.sweep.subdir a relative path below it")
+
+
+def preflight(launch: "Launch") -> None:
+    """Refuse, before anything is written, an output dir where a run or sweep would delete or overwrite what it
+    did not write (:func:`ddmr_cli.cli.jobdir.check_clear`), a planned job dir that is a file or resolves outside
+    the sweep dir (a symlink), or sweep tables and a plan ddmr did not write. Raises ``FaultError`` (exit 1)."""
+    from ddmr_cli.cli import jobdir, sweep
+
+    if not launch.multirun:
+        jobdir.check_clear(launch.out_dir)
+        return
+    if launch.study:
+        return
+    sweep.check_dir(launch.out_dir)
+    for job in launch.plan:
+        job_dir = launch.out_dir / job["dir"]
+        if not os.path.lexists(job_dir):
+            continue
+        if not jobdir.inside(job_dir, launch.out_dir):
+            raise jobdir.FaultError(job_dir, f"resolves to {job_dir.resolve()}, outside the sweep dir; a job writes "
+                                             "only inside its sweep dir; remove the link or choose another dir")
+        jobdir.check_clear(job_dir)
 
 
 #: flags naming config dirs: the primary config's (``--config-path``) and an extra one (``--config-dir``)
@@ -316,19 +386,29 @@ def finish(launch: Launch) -> int:
 
 def write_report(path: Path, out: str | None, margin: float | None, failure: int = EXIT_USAGE,
                  figures: bool = True) -> int:
+    from ddmr_cli.cli import jobdir
     from ddmr_cli.errors import DDMRError
     from ddmr_cli.report import build_report
+    from ddmr_cli.report.build import staged
 
     try:
         from ddmr_cli.report import tuning
 
         if tuning.is_tuning_dir(path):  # studies: held-out runs at paper and tuned gains, then their report
-            written = tuning.build(path, out, margin)
+            final = Path(out).expanduser().resolve() if out is not None else Path(path).expanduser().resolve() / "report"
+            written = staged(final, lambda root: tuning.build(path, root, margin))
         else:
             written = build_report(path, out, figures=figures, **({"margin": margin} if margin is not None else {}))
-    except (DDMRError, FileNotFoundError) as exc:
+    except jobdir.FaultError as exc:  # a file-system fault or a refused --out: one line naming the path, exit 1
+        print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
+        return EXIT_FAILED
+    except (DDMRError, FileNotFoundError) as exc:  # nothing to report: bad input
         print(f"ddmr: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return failure
+    except OSError as exc:
+        fault = jobdir.fault(exc)
+        print(f"ddmr: error: {fault.path}: {fault.reason}", file=sys.stderr)
+        return EXIT_FAILED
     print(f"ddmr: report written to {written}")
     return 0
 
@@ -364,8 +444,11 @@ def run_locked(launch: Launch) -> int:
 
     reaper = None
     try:
-        with jobdir.DirLock(launch.out_dir):
+        preflight(launch)  # reads only: a refused dir is left as it was
+        with jobdir.DirLock(launch.out_dir, kind="sweep" if launch.multirun else "run"):
+            preflight(launch)  # again, now that no other ddmr writes the tree
             if launch.multirun and not launch.study:
+                jobdir.clean_leftovers(launch.out_dir, [job["dir"] for job in launch.plan])
                 print(f"ddmr: sweep of {len(launch.plan)} jobs validated -> {launch.out_dir}", file=sys.stderr)
                 os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"  # workers end when we are gone
                 reaper = _start_reaper()
@@ -586,8 +669,16 @@ def _latest_sweep(root: Path) -> Path | None:
     return max(marks, key=lambda p: p.stat().st_mtime).parent if marks else None
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the one-line refusal of every ddmr command: ``ddmr: error: --flag: what``, exit 2."""
+
+    def error(self, message: str):
+        message = message.removeprefix("argument ")
+        self.exit(EXIT_USAGE, f"ddmr: error: {message}\n")
+
+
 def cmd_report(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(prog="ddmr report", description="Markdown report, tables (CSV) and figures "
+    parser = _Parser(prog="ddmr report", description="Markdown report, tables (CSV) and figures "
                                      "(PNG) from a sweep dir or a single run dir, beside the paper's numbers.")
     parser.add_argument("path", nargs="?", default=None,
                         help="a sweep dir (ddmr run -m ...) or a single run dir (default: the latest sweep under "

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
-from ddmr_cli.cli import io
+from ddmr_cli.cli import io, jobdir
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -111,14 +112,77 @@ def shared_dir(plan: list[dict]) -> tuple[dict, dict] | None:
     return None
 
 
+TABLES = (JOBS_CSV, SWEEP_METRICS_CSV, SWEEP_SEGMENTS_CSV)
+
+
 def read_plan(sweep_dir: Path) -> list[dict] | None:
     path = Path(sweep_dir) / PLAN
     if not path.is_file():
         return None
     try:
         return json.loads(path.read_text(encoding="utf-8"))["jobs"]
-    except (OSError, ValueError, KeyError):
+    except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def _recorded_tables(sweep_dir: Path) -> dict[str, dict]:
+    """The sweep tables the plan file records as written by this sweep dir's sweeps, with their digests."""
+    record = io.read_json(Path(sweep_dir) / PLAN)
+    tables = record.get("tables") if isinstance(record, dict) else None
+    return {k: v for k, v in tables.items() if k in TABLES} if isinstance(tables, dict) else {}
+
+
+def check_dir(sweep_dir: Path) -> None:
+    """Refuse a sweep dir whose ``sweep_plan.json`` or sweep tables ddmr did not write (a table the plan file
+    does not record): the sweep would overwrite them. Raises ``FaultError`` (exit 1)."""
+    from ddmr_cli.cli.jobdir import FaultError
+
+    sweep_dir = Path(sweep_dir)
+    plan = sweep_dir / PLAN
+    if os.path.lexists(plan) and (plan.is_symlink() or read_plan(sweep_dir) is None):
+        raise FaultError(plan, "in the way: not a sweep plan ddmr wrote; nothing was changed; move it away or "
+                               "choose another output dir")
+    recorded = _recorded_tables(sweep_dir)
+    for name in TABLES:
+        path = sweep_dir / name
+        if os.path.lexists(path) and (name not in recorded or path.is_symlink()):
+            raise FaultError(path, "in the way: ddmr did not write it (sweep_plan.json does not list it); nothing "
+                                   "was changed; move it away or choose another output dir")
+
+
+def write_plan(sweep_dir: Path, plan: list[dict]) -> None:
+    """Write the plan, keeping the record of the tables an earlier sweep into this dir wrote."""
+    tables = _recorded_tables(sweep_dir)
+    io.write_json(Path(sweep_dir) / PLAN, {"jobs": plan, **({"tables": tables} if tables else {})})
+
+
+def _install_tables(sweep_dir: Path, staged: Path) -> None:
+    """Replace the tables of an earlier sweep into this dir by the staged ones: the old ones go (only those the
+    plan file records), the new ones' digests are recorded in the plan file, then they are moved in,
+    ``sweep_jobs.csv`` last (the CLI takes a sweep without it as failed)."""
+    from ddmr_cli.cli.jobdir import digest
+
+    plan = read_plan(sweep_dir)
+    _remove_tables(sweep_dir)  # no table of an earlier sweep stays beside this one's
+    names = [n for n in (SWEEP_METRICS_CSV, SWEEP_SEGMENTS_CSV, JOBS_CSV) if (staged / n).is_file()]
+    if plan is not None:
+        io.write_json(Path(sweep_dir) / PLAN, {"jobs": plan, "tables": {n: digest(staged / n) for n in names}})
+    for name in names:
+        os.replace(staged / name, Path(sweep_dir) / name)
+
+
+def _remove_tables(sweep_dir: Path) -> None:
+    """Remove the sweep tables this dir's plan records (a table changed since is kept as ``<name>.changed``)."""
+    from ddmr_cli.cli.jobdir import _set_aside, digest
+
+    for name, want in _recorded_tables(sweep_dir).items():
+        path = Path(sweep_dir) / name
+        if not path.is_file() or path.is_symlink():
+            continue
+        if digest(path) == {"size": want.get("size"), "sha256": want.get("sha256")}:
+            path.unlink()
+        else:
+            log.warning("kept %s as %s: it differs from what the sweep wrote", path, _set_aside(path).name)
 
 
 @dataclass
@@ -353,18 +417,18 @@ def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
     state = read_state(sweep_dir)
     keys, values = swept_values(_job_overrides(state))
     jobs = jobs_table(state, keys, values)
-    tables = [state.sweep_dir / name for name in (JOBS_CSV, SWEEP_METRICS_CSV, SWEEP_SEGMENTS_CSV)]
-    for path in tables:  # no table of an earlier sweep stays beside this one's
-        path.unlink(missing_ok=True)
     try:
-        if state.complete:
-            io.write_csv(tables[1], _per_seed(state, keys, values, segments=False))
-            io.write_csv(tables[2], _per_seed(state, keys, values, segments=True))
-        io.write_csv(tables[0], jobs)  # last: the CLI takes a sweep without sweep_jobs.csv as failed
+        check_dir(state.sweep_dir)  # a table ddmr did not write is never replaced
+        with jobdir.Stage(state.sweep_dir / jobdir.TABLES_STAGE, create=False) as stage:
+            if state.complete:
+                io.write_csv(stage.path / SWEEP_METRICS_CSV, _per_seed(state, keys, values, segments=False))
+                io.write_csv(stage.path / SWEEP_SEGMENTS_CSV, _per_seed(state, keys, values, segments=True))
+            io.write_csv(stage.path / JOBS_CSV, jobs)
+            _install_tables(state.sweep_dir, stage.path)
     except OSError as exc:
-        for path in tables:
-            path.unlink(missing_ok=True)
-        print(f"ddmr: error: {exc.filename or state.sweep_dir}: {exc.strerror or exc}", file=sys.stderr)
+        fault = jobdir.fault(exc)
+        staged = str(jobdir.Stage(state.sweep_dir / jobdir.TABLES_STAGE).path)
+        print(f"ddmr: error: {fault.path.replace(staged, str(state.sweep_dir))}: {fault.reason}", file=sys.stderr)
         return state
     units = {}
     if cfg is not None:
@@ -392,7 +456,7 @@ class SweepAggregator(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         plan = plan_jobs(config.hydra.overrides.task, config)
-        io.write_json(Path(config.hydra.sweep.dir) / PLAN, {"jobs": plan})
+        write_plan(Path(config.hydra.sweep.dir), plan)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         aggregate(Path(config.hydra.sweep.dir), config)

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+import os
 import shlex
 from pathlib import Path
 
 import numpy as np
 
-from ddmr_cli.cli import io
+from ddmr_cli.cli import io, jobdir
 from ddmr_cli.engine.metrics import METRICS
 from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
@@ -50,8 +51,13 @@ def nn_reading(params: dict) -> str | None:
 
 
 class Report:
-    def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True):
+    """The report of ``data`` written into ``out`` (a staging dir: :func:`staged`); ``final`` is the dir it is
+    moved into, the ``--out`` its markdown names (default ``out``)."""
+
+    def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True,
+                 final: Path | None = None):
         self.data, self.out, self.margin = data, out, margin or Margin()
+        self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
         self.styles = StyleBook(j.controller for j in data.jobs)
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
@@ -86,8 +92,8 @@ class Report:
     def configuration(self) -> None:
         d = self.data
         report_cmd = f"ddmr report {shlex.quote(str(d.path))}"
-        if self.out != d.path / "report":
-            report_cmd += f" --out {shlex.quote(str(self.out))}"
+        if self.final != d.path / "report":
+            report_cmd += f" --out {shlex.quote(str(self.final))}"
         if self.margin != Margin():
             m = self.margin
             spec = f"{1000 * m.metres:g}mm" if m.metres is not None else f"{100 * m.relative:g}%"
@@ -398,10 +404,84 @@ class Report:
 
 
 def build(path, out=None, margin=None, figures: bool = True) -> Path:
+    """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`)."""
     margin = Margin.parse(margin)
     data = load(path)
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return Report(data, out_dir, margin, figures).build()
+    return staged(out_dir, lambda root: Report(data, root, margin, figures, final=out_dir).build())
 
 
-__all__ = ["build", "Report", "Job"]
+# --- one report per output dir, moved in whole ---------------------------------------------------------------
+
+#: the lock of a report's output dir (not ``.ddmr.lock``: a report dir is not a run's dir)
+REPORT_LOCK = ".ddmr-report.lock"
+#: the files a report wrote into its output dir, with their digests: what the next report may remove
+MANIFEST = ".ddmr-report.json"
+
+
+def _report_files(root: Path) -> list[str]:
+    skip = {jobdir.STAGE_MARK, REPORT_LOCK}
+    return sorted(p.relative_to(root).as_posix() for p in root.rglob("*")
+                  if p.is_file() and p.name not in skip)
+
+
+def staged(out: Path, write) -> Path:
+    """Write a report with ``write(root)`` into a staging dir inside ``out`` and move it in whole, holding
+    ``out``'s report lock (a second report into ``out`` is refused with one line naming the holder, exit 1).
+
+    The report replaces only files an earlier report wrote there (listed with their digests in
+    :data:`MANIFEST`; one changed since is kept as ``<name>.changed``); a file of the new report's name that no
+    report wrote is refused (nothing changes). The new files' digests are recorded before they are moved in,
+    ``report.md`` last. Raises :class:`ddmr_cli.cli.jobdir.FaultError` on a fault or refusal."""
+    out = Path(out)
+    try:
+        with jobdir.DirLock(out, name=REPORT_LOCK):
+            with jobdir.Stage(out / "ddmr-report", create=False) as stage:
+                write(stage.path)
+                _install(out, stage.path)
+    except jobdir.FaultError:
+        raise
+    except OSError as exc:
+        fault = jobdir.fault(exc)
+        staging = str(jobdir.Stage(out / "ddmr-report", create=False).path)
+        raise jobdir.FaultError(fault.path.replace(staging, str(out)), fault.reason) from None
+    return out
+
+
+def _install(out: Path, staging: Path) -> None:
+    old = io.read_json(out / MANIFEST)
+    old = old.get("digests", {}) if isinstance(old, dict) and isinstance(old.get("digests"), dict) else {}
+    new = _report_files(staging)
+    for name in [*new, MANIFEST]:
+        target = out / name
+        if os.path.lexists(target) and name not in old and name != MANIFEST or target.is_symlink():
+            raise jobdir.FaultError(target, "in the way: no earlier report wrote it (it is not in "
+                                            f"{MANIFEST}); nothing was changed; move it away or choose another --out")
+    manifest = out / MANIFEST
+    if os.path.lexists(manifest) and not isinstance(io.read_json(manifest), dict):
+        raise jobdir.FaultError(manifest, "in the way: not a record ddmr wrote; nothing was changed")
+    for name, want in sorted(old.items()):  # the earlier report's files: gone, or kept when changed since
+        path = out / name
+        if not path.is_file() or path.is_symlink() or not jobdir.inside(path, out):
+            continue
+        if jobdir.digest(path) == {"size": want.get("size"), "sha256": want.get("sha256")}:
+            path.unlink()
+        else:
+            jobdir.log.warning("kept %s as %s: it differs from what the earlier report wrote", path,
+                               jobdir._set_aside(path).name)
+    io.write_json(manifest, {"digests": {name: jobdir.digest(staging / name) for name in new}})
+    for name in sorted(new, key=lambda n: n == "report.md"):  # report.md last
+        target = out / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(staging / name, target)
+    for name in old:  # dirs the earlier report's files leave empty
+        parent = (out / name).parent
+        while parent != out and jobdir.inside(parent, out):
+            try:
+                parent.rmdir()
+            except OSError:
+                break
+            parent = parent.parent
+
+
+__all__ = ["build", "staged", "Report", "Job", "REPORT_LOCK", "MANIFEST"]

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ddmr_cli.cli import io
+from ddmr_cli.cli.jobdir import safe_name  # a scenario name as one path component (issue 26)
 from ddmr_cli.report import signals as S
 from ddmr_cli.report.data import Job, ReportData, flatten, paper_numbers
 from ddmr_cli.report.tables import fmt
@@ -230,7 +231,7 @@ class ScenarioFigures:
         return f"{text} — {self.scenario}, seed {self.seed}"
 
     def _save(self, fig, name: str, title: str, caption: str, tight: bool = True) -> None:
-        self.figures.append(Figure(save(fig, self.out_dir / f"{self.scenario}_{name}.png", tight=tight), title,
+        self.figures.append(Figure(save(fig, self.out_dir / f"{safe_name(self.scenario)}_{name}.png", tight=tight), title,
                                    caption))
 
     def _ordered(self, jobs: list[Job], channel: str, t_min: float = 1.0) -> list[Job]:

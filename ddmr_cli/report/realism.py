@@ -247,7 +247,9 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
     fig.suptitle(f"{scenario}: steady state against each effect (mean, 5-95 % band over seeds)", fontsize=10)
     fig.tight_layout()
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"realism_{scenario}.png"
+    from ddmr_cli.cli.jobdir import safe_name
+
+    path = out_dir / f"realism_{safe_name(scenario)}.png"  # one path component, whatever the name (issue 26)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

@@ -87,7 +87,11 @@ def validate_run(run: DictConfig) -> list[int]:
     integer("run.threads", run.threads, 0)
     if run.get("max_memory_gb") is not None:
         positive("run.max_memory_gb", run.max_memory_gb)
-    return kept_seeds(run)
+    try:
+        return kept_seeds(run)
+    except MemoryError:  # run.keep_series=all with a huge run.n_runs: the list of seeds alone does not fit
+        raise ConfigError("run.n_runs", run.n_runs, f"with run.keep_series={run.keep_series} the kept seeds alone "
+                                                    "do not fit in memory; lower run.n_runs") from None
 
 
 def _text(key: str, value: Any, optional: bool = True) -> None:
