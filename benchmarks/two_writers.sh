@@ -12,7 +12,7 @@ mkdir -p "$work" && cd "$work" || exit 1
 dir=sweep
 ddmr run -m +experiment=smoke controller=pid,smc scenario=paper_1 launcher=basic run.n_runs=100 hydra.sweep.dir=$dir >a.out 2>a.err &
 a=$!
-ddmr run -m +experiment=smoke controller=smc_ndo scenario=paper_1,paper_2 launcher=basic hydra.sweep.dir=$dir >b.out 2>b.err &
+ddmr run -m +experiment=smoke controller=smc_ndo scenario=paper_1,paper_2 launcher=basic run.n_runs=100 hydra.sweep.dir=$dir >b.out 2>b.err &
 b=$!
 # 2. wait for the winner's first job dir, then a single run into it
 for _ in $(seq 1 200); do
@@ -26,7 +26,7 @@ wait $a; ca=$?
 wait $b; cb=$?
 echo "A (pid $a, controller=pid,smc x paper_1, 100 seeds): exit $ca"
 grep -h "ddmr: error\|ddmr sweep:" a.err a.out
-echo "B (pid $b, controller=smc_ndo x paper_1,paper_2): exit $cb"
+echo "B (pid $b, controller=smc_ndo x paper_1,paper_2, 100 seeds): exit $cb"
 grep -h "ddmr: error\|ddmr sweep:" b.err b.out
 echo "job dirs in $dir:"
 find "$dir" -mindepth 1 -maxdepth 1 -type d -printf '  %f\n' | sort

@@ -433,7 +433,8 @@ def tree_conflict(directory: Path, kind: str) -> str | None:
     for parent in directory.parents:
         if (parent / LOCK).is_file():
             holder = _held(parent)
-            state = f"in use by {_describe(holder)}" if holder is not None else "a finished run's or sweep's dir"
+            state = (f"in use by {_describe(holder)}" if holder is not None
+                     else "a finished or stopped run's or sweep's dir")
             return f"inside {parent}, the output dir of another ddmr run or sweep ({state}); choose a dir outside it"
     below = _claimed_below(directory) if directory.is_dir() else None
     if below is not None:
