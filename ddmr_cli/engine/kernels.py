@@ -1,18 +1,31 @@
-"""One compiled step loop per controller, made from the template :mod:`ddmr_cli.engine.stepper`.
+"""One compiled step loop per controller and call signature, made from the template :mod:`ddmr_cli.engine.stepper`.
 
 numba inlines the laws a compiled function calls, so the step loop must be compiled once per controller law
 module. Its copy for a controller is the template's source with the three imports of the controller's laws
-pointed at that controller's module, written to a cache directory under a name that holds a hash of every law
-module's source, of the controller's module (so an edited law gets a fresh loop: numba's own cache would not
-notice an edit in a callee's file) and of the layout of the controller's state record (numba's on-disk index does
-not tell apart two record types that differ only in a nested array's shape, e.g. SMC-NDO's 1-neuron and
-SMC-NDO-NNO's 10-neuron weights: sharing one copy made a warm cache run the other's code), and imported; numba caches the copy's compiled code on disk beside it, and
-later processes load it instead of compiling. Without numba the same copy runs as Python.
+pointed at that controller's module, written to a cache directory and imported; numba caches the copy's compiled
+code on disk beside it, and later processes load it instead of compiling. Without numba the same copy runs as
+Python.
+
+The copy's file name is its identity: a hash of everything it was compiled for (:func:`stepper_for`):
+
+- the source of every law module it can inline (compiled.py, model/, control/, engine/) and of the controller's
+  own module, which may live outside the package (a user's controller): numba's own cache does not notice an edit
+  in a callee's file;
+- the complete type of every argument of the call (:func:`call_identity`): every record layout it touches (the
+  run record with the sensor's and the actuator's state, whose delay line's length depends on the delay; the
+  controller's state; the metric accumulators), the World, plant and parameter tuples field by field, every
+  array's dtype, rank and layout;
+- the Python, numba and llvmlite versions.
+
+So each copy's numba index holds exactly one compiled signature. numba's index alone is not enough: a copy
+shared by several signatures (one per actuator delay, say) held 16 entries after ordinary use, and a warm cache
+handed a call an entry compiled for another layout (issue 31; before that, SMC-NDO's and SMC-NDO-NNO's state
+records, tests/test_engine.py). :func:`stepper_for` also checks, after the call, that the copy holds no other
+signature (:func:`check_single_signature`).
 
 The cache directory is ``$DDMR_CACHE_DIR``, else ``$XDG_CACHE_HOME/ddmr``, else ``~/.cache/ddmr``, else a
 directory under the system's temporary directory when those are not writable.
 """
-
 from __future__ import annotations
 
 import hashlib
@@ -53,10 +66,19 @@ def cache_dir() -> Path:
     raise OSError("no writable cache directory for the compiled step loop (set DDMR_CACHE_DIR)")
 
 
+def _versions() -> str:
+    """The interpreter's and the compiler's versions (a compiled copy is valid for these only)."""
+    if not AVAILABLE:
+        return f"python={sys.version} numba=none"
+    import llvmlite
+    import numba
+    return f"python={sys.version} numba={numba.__version__} llvmlite={llvmlite.__version__}"
+
+
 @lru_cache(maxsize=1)
 def _law_sources_digest() -> str:
     root = Path(ddmr_cli.__file__).parent
-    digest = hashlib.sha256(f"{sys.version_info[:2]} numba={AVAILABLE}".encode())
+    digest = hashlib.sha256(_versions().encode())
     for entry in _LAW_PACKAGES:
         paths = [root / entry] if entry.endswith(".py") else sorted((root / entry).rglob("*.py"))
         for path in paths:
@@ -67,25 +89,58 @@ def _law_sources_digest() -> str:
 
 def _source_for(law_module: str) -> str:
     template = inspect.getsource(importlib.import_module(_TEMPLATE_MODULE))
-    source, count = _LAW_IMPORT.subn(lambda m: f"from {law_module} import {m.group(1)} as {m.group(2)}", template)
+    module = importlib.import_module(law_module)
+
+    def point(m):  # a law the controller does not define (only ``estimates`` is optional) stays open_loop's default
+        optional_default = m.group(1) == "estimates" and not hasattr(module, "estimates")
+        source_module = "ddmr_cli.control.open_loop" if optional_default else law_module
+        return f"from {source_module} import {m.group(1)} as {m.group(2)}"
+
+    source, count = _LAW_IMPORT.subn(point, template)
     # the copy's own functions are cached on disk (its name holds the hash of every law it inlines)
     source, cached = re.subn(r"^from ddmr_cli\.compiled import law$", "from ddmr_cli.compiled import cached_law as law",
                              source, flags=re.MULTILINE)
-    if count != 3 or cached != 1:
-        raise RuntimeError(f"{_TEMPLATE_MODULE}: expected 3 controller-law imports and 1 law import to replace, "
+    if count != 4 or cached != 1:
+        raise RuntimeError(f"{_TEMPLATE_MODULE}: expected 4 controller-law imports and 1 law import to replace, "
                            f"found {count} and {cached}")
     return f"# generated from {_TEMPLATE_MODULE} for {law_module}; do not edit\n" + source
 
 
-@lru_cache(maxsize=None)
-def stepper_for(law_module: str, layout: str = "") -> ModuleType:
-    """The step-loop module for the controller whose laws live in ``law_module`` and whose state record has the
-    ``layout`` given (its dtype's description; generated, imported, cached).
+def _type_identity(ty) -> str:
+    """A numba type spelled out completely: named tuples by their class's full name and every field's type,
+    records by numba's name for them (every field's name, type, nested shape and offset), arrays by dtype, rank,
+    layout and flags."""
+    from numba.core import types
 
-    The cache key covers every law module of the package, the controller's own module, which may live outside
-    the package (a user's controller), and the layout."""
+    if isinstance(ty, types.BaseNamedTuple):
+        cls = ty.instance_class
+        fields = ",".join(f"{name}:{_type_identity(t)}" for name, t in zip(ty.fields, ty.types))
+        return f"{cls.__module__}.{cls.__qualname__}({fields})"
+    if isinstance(ty, types.BaseTuple):
+        return "(" + ",".join(_type_identity(t) for t in ty.types) + ")"
+    if isinstance(ty, types.Array):
+        return f"{ty!s}[{_type_identity(ty.dtype)}]" if isinstance(ty.dtype, types.Record) else str(ty)
+    return str(ty)
+
+
+def call_identity(args) -> str:
+    """The complete type of a call's arguments (empty without numba, where nothing is compiled or cached)."""
+    if not AVAILABLE:
+        return ""
+    from numba import typeof
+
+    return ";".join(_type_identity(typeof(arg)) for arg in args)
+
+
+@lru_cache(maxsize=None)
+def stepper_for(law_module: str, identity: str = "") -> ModuleType:
+    """The step-loop module for the controller whose laws live in ``law_module``, compiled for the call whose
+    argument types :func:`call_identity` spells as ``identity`` (generated, imported, cached on disk).
+
+    The cache key covers every law module of the package, the controller's own module, the call's complete
+    argument types and the Python and compiler versions (see the module docstring)."""
     module_file = Path(inspect.getfile(importlib.import_module(law_module)))
-    key = (_law_sources_digest() + law_module + layout).encode() + module_file.read_bytes()
+    key = (_law_sources_digest() + law_module + identity).encode() + module_file.read_bytes()
     digest = hashlib.sha256(key).hexdigest()[:16]
     name = f"ddmr_stepper_{law_module.replace('.', '_')}_{digest}"
     path = cache_dir() / f"{name}.py"
@@ -102,4 +157,12 @@ def stepper_for(law_module: str, layout: str = "") -> ModuleType:
     return module
 
 
-__all__ = ["stepper_for", "cache_dir"]
+def check_single_signature(function) -> None:
+    """Raise RuntimeError if a compiled copy holds more than one signature (its file name promises one)."""
+    signatures = getattr(function, "signatures", None)
+    if signatures is not None and len(signatures) > 1:
+        raise RuntimeError(f"{function.__module__}: the compiled step loop holds {len(signatures)} signatures; "
+                           f"its cache key must name one (delete {cache_dir()} and report this)")
+
+
+__all__ = ["cache_dir", "call_identity", "check_single_signature", "stepper_for"]

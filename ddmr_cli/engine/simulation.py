@@ -23,7 +23,7 @@ from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
-from ddmr_cli.engine.kernels import stepper_for
+from ddmr_cli.engine.kernels import call_identity, check_single_signature, stepper_for
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator
 from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SERIES_CHANNELS, SimulationResult
@@ -255,8 +255,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
     controller = sim.controller
     params = controller.law_parameters(NominalModel.from_robot(sim.robot), sim.control_dt)
-    layout = repr(np.dtype(controller.state_fields()).descr)  # one compiled copy per state layout (kernels.py)
-    loop = stepper_for(controller.laws.__name__, layout).run_chunk
+    loop = None  # one compiled copy per complete call signature (kernels.py), chosen at the first chunk
     acc = MetricAccumulator(n_runs, dt, sim.terrain.names, sim.scenario.names)
     band_acc = BandAccumulator(n_steps, dt) if bands else None
     world = _world(sim, n_steps, acc.hp, acc.hp_zi, acc.phase_base, band_acc)
@@ -294,6 +293,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                 band_buffer = np.empty((n_runs, end - first, len(BAND_CHANNELS)))
                 args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
                         slot, band_buffer, first)
+                if loop is None:
+                    loop = stepper_for(controller.laws.__name__, call_identity(args + (0, n_runs))).run_chunk
 
                 def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
                     noise.next_chunk(n, xi, block)
@@ -305,6 +306,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                 if band_acc is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
                     _each(pool, lambda points: band_acc.add_chunk(band_buffer, first, points),
                           _split(end - first, n_threads))
+                if k0 == 0:
+                    check_single_signature(loop)
                 k0 += n
                 if progress is not None:
                     progress(k0, n_steps)
