@@ -81,6 +81,23 @@ def test_eso_estimate_of_d_converges_in_the_robot_loop(adrc):
         assert np.max(np.abs(s[f"s_{wheel}"][-100:])) < 1e-5 < np.max(np.abs(s[f"s_{wheel}"]))
 
 
+def test_the_estimate_of_d_is_taken_under_the_applied_voltage_while_saturated(adrc):
+    """With U_max = 11 V the cruise (about 11 V plus the rolling resistance's share) saturates for the whole run:
+    the ESO, fed the applied u, still converges, so the reported z2 - (f(w) + (g - b0) u) with u the *applied*
+    voltage converges to d. Taken with the command before the limit (the old code) it was off by
+    (g - b0) (u_c - u), several times d."""
+    mu = 0.05
+    J = ROBOT.inertia_matrix
+    d = -mu * ROBOT.mass * GRAVITY * ROBOT.wheel_radius / 2.0 / (J[0, 0] + J[0, 1])
+    sim = make_simulation(controller=adrc, terrain=make_terrain(TerrainZone("sand", 0.0, 0.0, mu)), duration=0.5,
+                          initial_pose=(0.0, 0.0, 0.0), robot=paper_robot("robot.max_voltage=11.0"))
+    s = simulate(sim, [0], keep_series=[0]).series[0]
+    for wheel in ("right", "left"):
+        late = slice(-100, None)
+        assert np.all(np.abs(s[f"u_command_{wheel}"][late]) > 11.0)  # saturated to the end
+        np.testing.assert_allclose(s[f"d_hat_ndo_{wheel}"][late], d, rtol=1e-3)
+
+
 def test_zero_disturbance_and_zero_initial_error_keep_every_error_at_zero(adrc):
     assert_zero_error_stays_zero(adrc)
 

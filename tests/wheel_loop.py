@@ -38,6 +38,8 @@ def wheel_loop(controller, nominal: NominalModel, acceleration, w0, w_d, duratio
                                                                     0.0, 0.0)
         u_R, sat_R = saturate(uc_R, max_voltage)
         u_L, sat_L = saturate(uc_L, max_voltage)
+        if hasattr(laws, "estimates"):  # estimates reported under the applied voltage (ADRC's)
+            dn_R, dn_L, nn_R, nn_L = laws.estimates(p, records[0], w_R, w_L, u_R, u_L, dn_R, dn_L, nn_R, nn_L)
         a_R, a_L = acceleration(k * dt, w_R, w_L, u_R, u_L)
         laws.update(p, records[0], w_R, w_L, w_d[0], w_d[1], u_R, u_L, uc_R, uc_L, sat_R, sat_L)
         out["w"][k], out["u"][k], out["u_command"][k] = (w_R, w_L), (u_R, u_L), (uc_R, uc_L)

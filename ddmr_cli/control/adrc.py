@@ -61,12 +61,19 @@ def start(p, st, w0_R, w0_L):
 
 @law
 def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
-    """``u = (w_c (w_d - z1) + w_d' - z2) / b0`` per wheel. The disturbance estimate reported is the part of
-    ``z2`` the nominal model does not explain, ``z2 - (f(w) + (g - b0) u)``: the ESO's estimate of ``d``."""
+    """[6g] ``u = (w_c (w_d - z1) + w_d' - z2) / b0`` per wheel (the estimate of ``d`` needs the applied
+    voltage: :func:`estimates`)."""
     u_R = (p.bandwidth * (wd_R - st["z1"][0]) + wdd_R - st["z2"][0]) * (1.0 / p.b0)
     u_L = (p.bandwidth * (wd_L - st["z1"][1]) + wdd_L - st["z2"][1]) * (1.0 / p.b0)
+    return u_R, u_L, wd_R - w_R, wd_L - w_L, 0.0, 0.0, 0.0, 0.0
+
+
+@law
+def estimates(p, st, w_R, w_L, u_R, u_L, ndo_R, ndo_L, nn_R, nn_L):
+    """The ESO's estimate of ``d``: the part of ``z2`` the nominal model does not explain under the applied
+    voltage ``u`` (after the driver's limit and PWM, the ``u`` the ESO is fed), ``z2 - (f(w) + (g - b0) u)``."""
     f_R, f_L = total_disturbance(p.nominal, p.b0, w_R, w_L, u_R, u_L)
-    return u_R, u_L, wd_R - w_R, wd_L - w_L, st["z2"][0] - f_R, st["z2"][1] - f_L, 0.0, 0.0
+    return st["z2"][0] - f_R, st["z2"][1] - f_L, 0.0, 0.0
 
 
 @law

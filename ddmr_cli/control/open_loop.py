@@ -31,6 +31,15 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     """No state."""
 
 
+@law
+def estimates(p, st, w_R, w_L, u_R, u_L, ndo_R, ndo_L, nn_R, nn_L):
+    """The disturbance estimates reported at a control instant, given the applied voltage ``u`` (after the
+    driver's limit and PWM): by default what ``command`` returned. A controller whose estimate depends on the
+    applied voltage (ADRC's) defines its own; the step loop uses this one for every controller that does not
+    (:mod:`ddmr_cli.engine.kernels`)."""
+    return ndo_R, ndo_L, nn_R, nn_L
+
+
 class OpenLoop(WheelController):
     """Apply a constant voltage ``(u_R, u_L)``.
 

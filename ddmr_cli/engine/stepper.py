@@ -24,6 +24,7 @@ import math
 
 from ddmr_cli.compiled import law
 from ddmr_cli.control.open_loop import command as controller_command  # controller laws
+from ddmr_cli.control.open_loop import estimates as controller_estimates  # controller laws
 from ddmr_cli.control.open_loop import start as controller_start  # controller laws
 from ddmr_cli.control.open_loop import update as controller_update  # controller laws
 from ddmr_cli.control.outer_loop import kanayama
@@ -92,13 +93,16 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
             wdd_R = 0.0 if kc == 0 else (wd_R - wdp_R) * (1.0 / world.control_dt)
             wdd_L = 0.0 if kc == 0 else (wd_L - wdp_L) * (1.0 / world.control_dt)
             wdp_R, wdp_L = wd_R, wd_L
-            # wheel controller (6) on the measured speeds, the driver's voltage limit and PWM (§10)
+            # wheel controller (6) on the measured speeds, the driver's voltage limit and PWM (§10), the estimates
+            # of d reported under the applied voltage
             uc_R, uc_L, s_R, s_L, ndo_R, ndo_L, nn_R, nn_L = controller_command(
                 params, st, kc, mw_R, mw_L, wd_R, wd_L, wdd_R, wdd_L)
             us_R, sat_R = saturate(uc_R, plant.max_voltage)
             us_L, sat_L = saturate(uc_L, plant.max_voltage)
             if act.pwm:
                 us_R, us_L = actuator.pwm(us_R, act.pwm_step), actuator.pwm(us_L, act.pwm_step)
+            ndo_R, ndo_L, nn_R, nn_L = controller_estimates(params, st, mw_R, mw_L, us_R, us_L, ndo_R, ndo_L, nn_R,
+                                                            nn_L)
             controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
             if k == 0:
                 actuator.start(act, run, us_R, us_L)

@@ -36,7 +36,8 @@ POSE_SOURCES = ("odometry", "noisy")
 #: sensor noise channels per step (standard normals): speed right, speed left, x, y, theta
 NOISE_CHANNELS = ("speed_right", "speed_left", "x", "y", "theta")
 #: the per-run sensor state (fields of the engine's run record)
-SENSOR_FIELDS = [("wheel_angle", "f8", 2), ("count_prev", "f8", 2), ("w_filtered", "f8", 2), ("odometry", "f8", 3)]
+SENSOR_FIELDS = [("wheel_angle", "f8", 2), ("count_prev", "f8", 2), ("w_filtered", "f8", 2), ("odometry", "f8", 3),
+                 ("odometry_count", "f8", 2)]
 
 
 class SensorParameters(NamedTuple):
@@ -91,13 +92,17 @@ def wheel_angle(angle, w_before, w_after, dt):
 
 @law
 def start(p, run, w0_R, w0_L):
-    """Before the first reading: the wheel angles are 0, the encoder's previous reading is the angle one period
-    earlier at the initial speed (so the first speed estimate is ``w(0)`` to within a count), the filter starts at
-    ``w(0)`` and the odometry at the true initial pose."""
+    """Before the first reading: the wheel angles are 0; the speed estimate's previous reading is the angle one
+    period earlier at the initial speed (the wheels were turning before t = 0, so the first speed estimate is
+    ``w(0)`` to within a count), the filter starts at ``w(0)``; the odometry starts at the true initial pose and
+    integrates the counts from the reading at t = 0 (0): the wheel turned by nothing before the run began for the
+    pose, which is the true pose at t = 0."""
     run["wheel_angle"][0] = 0.0
     run["wheel_angle"][1] = 0.0
     run["count_prev"][0] = quantise(-w0_R * p.period, p.count)
     run["count_prev"][1] = quantise(-w0_L * p.period, p.count)
+    run["odometry_count"][0] = 0.0
+    run["odometry_count"][1] = 0.0
     run["w_filtered"][0] = w0_R
     run["w_filtered"][1] = w0_L
     run["odometry"][0] = run["x"]
@@ -124,10 +129,13 @@ def measure(p, run, x, y, theta, w_R, w_L, xi, wheel_radius, half_track):
             run["w_filtered"][1] = m_L
         if p.odometry:
             m_x, m_y, m_th = odometry(run["odometry"][0], run["odometry"][1], run["odometry"][2],
-                                      q_R - run["count_prev"][0], q_L - run["count_prev"][1], wheel_radius, half_track)
+                                      q_R - run["odometry_count"][0], q_L - run["odometry_count"][1], wheel_radius,
+                                      half_track)
             run["odometry"][0] = m_x
             run["odometry"][1] = m_y
             run["odometry"][2] = m_th
+            run["odometry_count"][0] = q_R
+            run["odometry_count"][1] = q_L
         run["count_prev"][0] = q_R
         run["count_prev"][1] = q_L
     if p.noisy:
