@@ -225,3 +225,13 @@ def test_ndo_is_fed_the_applied_voltage():
     err = s["d_true_right"] - s["d_hat_ndo_right"]
     k = np.arange(len(err))
     np.testing.assert_allclose(err, D * (1.0 - gain * dt) ** k, rtol=1e-7, atol=1e-9)
+
+
+def test_each_controller_declares_the_estimators_it_reports():
+    """What the report's estimation table rests on: a controller without an estimator reports d-hat = 0, so its
+    'estimation MAE' would be the mean |d| (issue 25: it was printed for PID and SMC)."""
+    from ddmr_cli import paper_controller
+
+    expected = {"pid": (), "smc": (), "sta": (), "adaptive_smc": (), "smc_ndo": ("NDO",), "sta_ndo": ("NDO",),
+                "adaptive_smc_ndo": ("NDO",), "smc_ndo_nno": ("NDO", "NN"), "smc_nno": ("NN",), "adrc": ("ESO",)}
+    assert {name: paper_controller(name).estimators() for name in expected} == expected

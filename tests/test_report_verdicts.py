@@ -27,8 +27,8 @@ M = 0.1  # margin in the metric's unit
 # --- verdict_lower: "b is below a" ---------------------------------------------------------------------------
 @pytest.mark.parametrize("case, expected", [
     (dict(diff_ci=(-0.5, -0.2)), HOLDS),                          # below -margin, significant
-    (dict(diff_ci=(-0.05, 0.08)), TIE),                            # inside ±margin
-    (dict(diff_ci=(-0.09, -0.01)), TIE),                           # significant, but negligible: still a tie
+    (dict(diff_ci=(-0.05, 0.08)), FAILS),                          # inside ±margin: no claimed improvement
+    (dict(diff_ci=(-0.09, -0.01)), FAILS),                         # significant, but negligible: refuted
     (dict(diff_ci=(0.2, 0.5)), FAILS),                             # significantly the other way
     (dict(diff_ci=(-0.3, -0.05)), INCONCLUSIVE),                   # lower, but reaching into the margin
     (dict(diff_ci=(-0.5, 0.3), p=0.4), INCONCLUSIVE),              # straddles 0, not significant
@@ -38,6 +38,13 @@ M = 0.1  # margin in the metric's unit
 ])
 def test_verdict_lower_every_branch(case, expected):
     assert category(S.verdict_lower(pr(**case), M)) == expected
+
+
+@pytest.mark.parametrize("diff_ci", [(-0.05, 0.08), (-0.09, -0.01)])
+def test_only_a_comparison_that_claims_no_improvement_ties(diff_ci):
+    """Inside the margin an improvement claim does not hold; a baseline comparison (equality possible) ties."""
+    assert category(S.verdict_lower(pr(diff_ci), M, equality_possible=True)) == TIE
+    assert "no practical difference" in S.verdict_lower(pr(diff_ci), M)
 
 
 def test_verdict_lower_reasons():
@@ -58,7 +65,8 @@ def test_zero_margin_never_ties():
     (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.7, 0.8)), HOLDS),
     (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.4, 0.5)), FAILS),          # CI of the reduction below 60 %
     (dict(diff_ci=(0.1, 0.3), reduction_ci=(-0.3, -0.1)), FAILS),           # higher, not lower
-    (dict(diff_ci=(-0.08, 0.05), reduction_ci=(-0.05, 0.08)), TIE),         # equal within the margin
+    (dict(diff_ci=(-0.08, 0.05), reduction_ci=(-0.05, 0.08)), FAILS),       # equal within the margin: refuted
+    (dict(diff_ci=(-0.08, 0.05), reduction_ci=(0.55, 0.7)), FAILS),         # reduction CI fine, but negligible
     (dict(diff_ci=(-0.8, -0.5), reduction_ci=(0.5, 0.8)), INCONCLUSIVE),    # CI of the reduction includes 60 %
     (dict(diff_ci=(-0.8, 0.1), reduction_ci=(-0.1, 0.8), p=0.3), INCONCLUSIVE),
     (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.7, 0.8), n=4), INCONCLUSIVE),
@@ -71,7 +79,7 @@ def test_verdict_over_is_not_always_holds():
     """The mutation this suite must catch: a verdict_over that always says holds."""
     verdicts = {category(S.verdict_over(pr((-0.8, -0.7), (0.4, 0.5)), 0.6, M)),
                 category(S.verdict_over(pr((-0.05, 0.05), (-0.05, 0.05)), 0.6, M))}
-    assert verdicts == {FAILS, TIE}
+    assert verdicts == {FAILS}
 
 
 # --- verdict_about: "b is about target lower than a" ------------------------------------------------------------
@@ -79,7 +87,7 @@ def test_verdict_over_is_not_always_holds():
     (dict(diff_ci=(-0.45, -0.35), reduction_ci=(0.35, 0.45), reduction=0.4), HOLDS),
     (dict(diff_ci=(-0.8, -0.7), reduction_ci=(0.7, 0.8)), FAILS),               # far more than 40 %
     (dict(diff_ci=(-0.2, -0.15), reduction_ci=(0.15, 0.2)), FAILS),             # far less
-    (dict(diff_ci=(-0.05, 0.05), reduction_ci=(-0.05, 0.05)), TIE),
+    (dict(diff_ci=(-0.05, 0.05), reduction_ci=(-0.05, 0.05)), FAILS),          # no difference: refuted
     (dict(diff_ci=(-0.6, -0.25), reduction_ci=(0.25, 0.6), reduction=0.55), INCONCLUSIVE),  # estimate outside
     (dict(diff_ci=(-0.6, 0.1), reduction_ci=(-0.1, 0.6), p=0.2), INCONCLUSIVE),  # not significant
     (dict(diff_ci=(-0.45, -0.35), reduction_ci=(0.35, 0.45), reduction=0.4, n=2), INCONCLUSIVE),
@@ -92,7 +100,7 @@ def test_verdict_about_needs_the_difference_beyond_the_margin():
     """A reduction of 40 % of a tiny mean is within a physical margin: not a practical improvement."""
     small = pr((-0.45, -0.35), (0.35, 0.45), reduction=0.4)
     assert category(S.verdict_about(small, 0.40, 0.10, margin=0.4)) == INCONCLUSIVE
-    assert category(S.verdict_about(small, 0.40, 0.10, margin=0.5)) == TIE
+    assert category(S.verdict_about(small, 0.40, 0.10, margin=0.5)) == FAILS
 
 
 # --- combining the parts of a claim -----------------------------------------------------------------------------
@@ -123,7 +131,8 @@ def test_paired_on_constructed_series():
     assert r.rel_diff_ci[0] == pytest.approx(-r.reduction_ci[1]) and r.rel_diff_ci[1] == pytest.approx(-r.reduction_ci[0])
     assert r.p < 1e-6 and r.b_lower and not r.b_higher
     assert category(S.verdict_lower(r, 1e-4)) == HOLDS
-    assert category(S.verdict_lower(r, 2e-3)) == TIE     # a 2 mm margin makes 1 mm negligible
+    assert category(S.verdict_lower(r, 2e-3)) == FAILS   # a 2 mm margin makes 1 mm negligible: no improvement
+    assert category(S.verdict_lower(r, 2e-3, equality_possible=True)) == TIE
     assert S.paired(a, b).as_dict() == r.as_dict()        # seeded bootstrap: reproducible
 
 
@@ -137,8 +146,8 @@ def test_paired_uses_common_seeds_only():
 
 # --- the margin --------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("text, metres, relative", [
-    (None, 1e-4, 0.05), ("0.1mm", 1e-4, 0.05), ("1e-4", 1e-4, 0.05), (2e-4, 2e-4, 0.05), ("100um", 1e-4, 0.05),
-    ("0.0003 m", 3e-4, 0.05), ("5%", None, 0.05), ("12.5 %", None, 0.125), ("0", 0.0, 0.05),
+    (None, 1e-4, 0.05), ("0.1mm", 1e-4, 0.05), ("1e-4m", 1e-4, 0.05), ("100um", 1e-4, 0.05),
+    ("0.0003 m", 3e-4, 0.05), ("5%", None, 0.05), ("12.5 %", None, 0.125), ("0mm", 0.0, 0.05),
 ])
 def test_margin_parse(text, metres, relative):
     m = Margin.parse(text)
@@ -148,7 +157,7 @@ def test_margin_parse(text, metres, relative):
     assert m.relative == pytest.approx(relative)
 
 
-@pytest.mark.parametrize("bad", ["lots", "-1mm", "nan", "%", "5 furlongs", "inf"])
+@pytest.mark.parametrize("bad", ["lots", "-1mm", "nan", "%", "5 furlongs", "inf", "5", "1e-4", 2e-4, "0"])
 def test_margin_parse_rejects(bad):
     with pytest.raises(ValueError, match="margin"):
         Margin.parse(bad)
@@ -211,21 +220,23 @@ def test_claims_hold_when_the_data_say_so():
     assert category(res["estimation"].overall[key]) == HOLDS      # 67 %
 
 
-def test_claims_tie_and_fail_as_in_our_sweep():
-    """Our sweep's picture: SMC-NDO-NNO equal to SMC-NDO within 0.1 mm, chattering alike."""
+def test_claims_of_improvement_do_not_hold_where_our_sweep_shows_none():
+    """Our sweep's picture: SMC-NDO-NNO equal to SMC-NDO within 0.1 mm, chattering alike: every claimed
+    improvement that is not there does not hold (never a tie)."""
     from ddmr_cli.report import verdicts as V
 
     data = make_data({"pid": base(6.9), "smc": base(2.93), "smc_ndo": base(1.792),
                       "smc_ndo_nno": base(1.828, chat=40.5, hf=0.205, dest=20.3)})
     res = by_id(V.evaluate(data))
     key = ("paper_1", "smc_ndo_nno")
-    assert category(res["ranking"].overall[key]) == TIE           # PID > SMC > SMC-NDO hold, the last pair ties
+    assert category(res["ranking"].overall[key]) == FAILS         # PID > SMC > SMC-NDO hold, the last pair is equal
     pair = next(c for c in res["ranking"].checks if c.b == "smc_ndo_nno")
-    assert category(pair.verdict) == TIE and pair.margin == pytest.approx(0.05 * 1.792e-3, rel=0.05)  # 5 % < 0.1 mm
-    assert category(res["vs_smc_ndo"].overall[key]) == TIE
+    assert category(pair.verdict) == FAILS and pair.margin == pytest.approx(0.05 * 1.792e-3, rel=0.05)  # 5 % < 0.1 mm
+    assert category(res["vs_smc_ndo"].overall[key]) == FAILS
     assert category(res["vs_smc"].overall[key]) == FAILS          # 38 % < 60 %
-    assert category(res["chattering"].overall[key]) == TIE
-    assert category(res["estimation"].overall[key]) == TIE
+    assert category(res["chattering"].overall[key]) == FAILS
+    assert category(res["estimation"].overall[key]) == FAILS
+    assert TIE not in {category(v) for c in res.values() for v in c.by_metric.values()}
     # with no margin the same data give the strict verdicts: the NNO is significantly worse than SMC-NDO
     strict = by_id(V.evaluate(data, Margin(0.0, 0.0)))
     assert category(strict["ranking"].overall[key]) == FAILS
@@ -240,9 +251,19 @@ def test_claims_use_the_steady_state_deviation_when_present():
     assert V.deviation_metric(data) == "deviation_mae_ss"
     res = by_id(V.evaluate(data))
     key = ("paper_1", "smc_ndo_nno")
-    assert {c.metric for c in res["ranking"].checks} == {"deviation_mae_ss"}
+    assert {c.metric for c in res["ranking"].checks} == {"deviation_mae_ss", "deviation_mae"}
+    assert res["ranking"].metrics == ("deviation_mae_ss", "deviation_mae")  # the overall verdict rests on the first
     assert category(res["ranking"].overall[key]) == HOLDS  # SMC-NDO -> NNO: 0.15 mm lower, beyond 5 % of 0.30 mm
-    assert "steady-state" in res["vs_smc"].title
+    # on the paper's whole-run metric the same data refute it (1.83 vs 1.8 mm), and both verdicts are printed
+    assert category(res["ranking"].by_metric[key + ("deviation_mae",)]) == FAILS
+    assert category(res["vs_smc"].by_metric[key + ("deviation_mae_ss",)]) == HOLDS     # 0.15 / 0.40: 62 %
+    assert category(res["vs_smc"].by_metric[key + ("deviation_mae",)]) == FAILS        # 1.83 / 2.9: 37 %
+    md = V.markdown(data, V.evaluate(data))
+    line = next(ln for ln in md.splitlines() if ln.startswith("- SMC-NDO-NNO: over 60 %"))
+    assert "steady-state deviation MAE (ours): **holds**" in line
+    assert "whole-run deviation MAE (the paper's Table 4): **does not hold**" in line
+    assert "claimed: a reduction of more than 60 %" in line and "95 % CI" in line
+    assert "18.8 %" in md and "50.0 %" in md and "Table 1" in md  # the paper's own Table 4 against its text
     # without the column: the whole-run deviation
     plain = make_data({c: base(dev[c]) for c in dev})
     assert V.deviation_metric(plain) == "deviation_mae"

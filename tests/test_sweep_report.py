@@ -32,17 +32,26 @@ def test_a_bad_margin_is_refused_before_running(tmp_path, monkeypatch, capsys):
     assert cli.main(["report", str(tmp_path), "--margin=-3%"]) == 2
 
 
+@pytest.mark.parametrize("bare", ["5", "0.05", "1e-4"])
+def test_a_margin_without_a_unit_is_refused_in_one_line(tmp_path, bare, capsys):
+    """``--margin 5`` once meant 5 m and made every verdict a tie; a bare number is refused, exit 2, one line."""
+    assert cli.main(["report", str(tmp_path), "--margin", bare]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"ddmr: error: --margin={bare}:") and "unit" in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_margin_is_passed_through_when_the_report_takes_one(tmp_path, monkeypatch, capsys):
     calls: list = []
     monkeypatch.setattr(ddmr_cli.report, "build_report", _fake_report(calls))
-    assert cli.main(["report", str(tmp_path), "--margin", "0.05"]) == 0
-    assert calls == [(tmp_path, None, "0.05", True)]
+    assert cli.main(["report", str(tmp_path), "--margin", "0.05mm"]) == 0
+    assert calls == [(tmp_path, None, "0.05mm", True)]
     assert cli.main(["report", str(tmp_path)]) == 0  # no margin given: the report's own default
     assert calls[-1][2] is None
     assert cli.main(["report", str(tmp_path), "--no-figures"]) == 0  # tables and text only
     assert calls[-1] == (tmp_path, None, None, False)
-    launch = cli.prepare(["report.margin=0.05"], ["report.margin=0.05", "run.n_runs=1"], multirun=False)
-    assert launch.margin == "0.05" and launch.report is False
+    launch = cli.prepare(["report.margin=0.05mm"], ["report.margin=0.05mm", "run.n_runs=1"], multirun=False)
+    assert launch.margin == "0.05mm" and launch.report is False
 
 
 @pytest.mark.skipif(importlib.util.find_spec("hydra_plugins.hydra_ray_launcher") is not None,

@@ -197,6 +197,7 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
         "config_hash": digest or config_hash(cfg),
         "options": jobdir.output_options(cfg),
         "parameters": sim.controller.parameters(),
+        "estimators": list(sim.controller.estimators()),
         "seeds": [result.seeds[0], result.seeds[-1]],
         "series_seeds": list(result.series),
         "statistics": result.summary(),

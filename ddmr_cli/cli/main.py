@@ -38,7 +38,7 @@ commands:
                             ddmr run -m +tune=smc_ndo                 # tune gains (Optuna); ddmr report it
                           add report=true to write the report when the run or sweep ends
   explain KEY [OVERRIDES] a config key's meaning, unit, value, valid range and docs/model.md section
-  report [PATH] [--out DIR] [--margin 0.1mm] [--no-figures]
+  report [PATH] [--out DIR] [--margin 0.05mm|2%] [--no-figures]
                           markdown report, tables (CSV) and figures (PNG) from a sweep or run dir
                           (default PATH: the latest sweep under ./outputs)
   bench [--quick]         print engine and end-to-end performance figures for this machine
@@ -685,9 +685,12 @@ def cmd_report(argv: list[str]) -> int:
                              "./outputs)")
     parser.add_argument("--out", default=None, help="output dir (default: PATH/report)")
     parser.add_argument("--margin", default=None,
-                        help="practical margin of the verdicts: a length (0.1mm, the default; 1e-4 in metres) for "
-                             "the metrics in metres, 5%% of the reference's mean for the others; or a percentage "
-                             "(5%%) for every metric. A paired difference whose 95%% CI lies inside it is a tie")
+                        help="practical margin of the verdicts, with its unit: a length (0.05mm, 50um, 5e-5m) "
+                             "for the metrics in metres, 5%% of the reference's mean for the others; or a "
+                             "percentage (2%%) for every metric; a bare number is refused. Default: 0.1 mm or 5%% of "
+                             "the reference's mean, whichever is smaller, for metrics in metres (deviation, e_x, "
+                             "e_y); 5%% for the others. A paired difference whose 95%% CI lies inside it refutes a "
+                             "claimed improvement (a tie for baseline comparisons)")
     parser.add_argument("--no-figures", action="store_true",
                         help="write report.md and the tables only, without drawing the figures (much faster)")
     args = parser.parse_args(argv)

@@ -129,5 +129,9 @@ class ADRC(WheelController):
                                                    f"Euler ESO with controller.observer_bandwidth = "
                                                    f"{self.observer_bandwidth:.3g} 1/s")
 
+    def estimators(self) -> tuple[str, ...]:
+        """The ESO's z2 gives the estimate of d (:func:`estimates`)."""
+        return ("ESO",)
+
     def parameters(self):
         return {"w_c": self.bandwidth, "w_o": self.observer_bandwidth, "b0": "diag(g) of the nominal model"}

@@ -69,6 +69,13 @@ class WheelController:
         """The controller's parameters, for the report's Table 3."""
         return {}
 
+    def estimators(self) -> tuple[str, ...]:
+        """The disturbance estimators whose estimate of d the controller reports: its NDO and NN observers when it
+        has them (the ``ndo`` and ``nn`` attributes), none by default. Without one, d-hat is 0 and the estimation
+        MAE is only the mean |d|: the report leaves it out."""
+        return tuple(name for name, observer in (("NDO", getattr(self, "ndo", None)), ("NN", getattr(self, "nn", None)))
+                     if observer is not None)
+
     def step_rates(self, nominal: NominalModel) -> list[StepRate]:
         """First-order rates of the controller's own loops that ``dt * rate`` must keep below the
         integrator's stability limit (see :meth:`check_step`)."""

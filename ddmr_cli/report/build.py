@@ -281,10 +281,14 @@ class Report:
         est["paper_d_est_mae"] = [paper.get(r["controller"], math.nan) if r["scenario"] == PAPER_SCENARIO
                                   else math.nan for _, r in est.iterrows()]
         est["ratio_d_est_mae"] = est["d_est_mae_mean"] / est["paper_d_est_mae"]
+        # a controller without an estimator reports d-hat = 0: its "estimation MAE" is the mean |d|, not shown
+        blind = [d.job(r["scenario"], r["key"]).summary.get("estimators") == [] for _, r in est.iterrows()]
+        est.loc[blind, [c for c in est.columns if c.startswith(("d_est_mae", "ratio_d_est_mae"))]] = math.nan
         link = self.csv("estimation.csv", est, "disturbance estimation")
         self.add("## Disturbance estimation", "",
                  f"MAE of d_true − d̂ over both wheels (rad/s², units of d), of the NDO part alone, and the MAE of the "
-                 f"sliding variable ({link}). Controllers without an observer have d̂ = 0, so theirs is the mean |d|. "
+                 f"sliding variable ({link}). Controllers without an estimator (PID, SMC, ...) report d̂ = 0: theirs "
+                 f"would only be the mean |d| and is left out (–). "
                  f"The paper's 48.3 (NDO) and 16.0 (NDO+NNO) are compared with scenario 1.", "")
         for scenario in d.scenarios:
             extra = [("Paper", lambda r: T.fmt(r["paper_d_est_mae"])),

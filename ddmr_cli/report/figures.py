@@ -157,9 +157,22 @@ class ScenarioFigures:
         return [(float(x[a]), float(x[b - 1]), names[zone[a]] if zone[a] < len(names) else f"zone {zone[a]}")
                 for a, b in zip(starts, ends)]
 
+    def _by_distance(self) -> bool:
+        """Whether the scenario's phases switch by the distance travelled (``phase_clock: distance``)."""
+        return (self.ref.config.get("scenario") or {}).get("phase_clock", "distance") == "distance"
+
     def _phases(self) -> list[tuple[float, str]]:
+        """(start time [s], name) of each phase of the reference job; a phase that starts at a distance travelled
+        starts at the time the reference seed reached it."""
         phases = (self.ref.config.get("scenario") or {}).get("phases") or {}
-        return sorted((float(p.get("start", 0.0)), name) for name, p in phases.items()) if len(phases) > 1 else []
+        if len(phases) < 2:
+            return []
+        starts = sorted((float(p.get("start", 0.0)), name) for name, p in phases.items())
+        if self._by_distance():
+            s = self._s(self.ref)
+            if "distance" in s:
+                return [(float(np.interp(start, s["distance"], s["t"])), name) for start, name in starts]
+        return starts
 
     def _spans(self) -> list[tuple[float, float, str]]:
         """What a time axis is divided into: the scenario's phases when it has several, else the terrain zones."""
@@ -171,8 +184,12 @@ class ScenarioFigures:
         return self._zone_spans("t")
 
     def _spans_text(self) -> str:
-        return ("shaded bands alternate the scenario's phases (named at the top)" if self._phases()
-                else "shaded bands alternate the terrain zones (named at the top)")
+        if not self._phases():
+            return "shaded bands alternate the terrain zones (named at the top)"
+        if self._by_distance():
+            return ("shaded bands alternate the scenario's phases (named at the top), which switch by the distance "
+                    "travelled (at the times this seed reached them), not by time")
+        return "shaded bands alternate the scenario's phases (named at the top), which switch by time"
 
     def _decorate_time(self, ax, labels: bool = False):
         """Shade every other phase (or terrain zone) on a time axis and name them at the top."""

@@ -358,10 +358,12 @@ class RunConfig:
 class ReportConfig:
     auto: bool = param(unit="", help="write the report (ddmr report) when the run or sweep ends; "
                        "report=true is short for report.auto=true", range="true | false")
-    margin: Optional[str] = param(unit="m or %", help="practical margin of the report's verdicts: a paired "
-                                  "difference whose 95% CI lies inside it is a tie (null: 0.1mm for metrics in "
-                                  "metres, 5% of the reference's mean for the others)",
-                                  range="null, a length (0.1mm, 1e-4) or a percentage (5%)", model=7)
+    margin: Optional[str] = param(unit="m or %", help="practical margin of the report's verdicts, with its unit: "
+                                  "a paired difference whose 95% CI lies inside it refutes a claimed improvement "
+                                  "(null: 0.1 mm or 5% of the reference's mean, whichever is smaller, for metrics "
+                                  "in metres; 5% for the others)",
+                                  range="null, a length with its unit (0.05mm, 50um, 5e-5m) or a percentage (2%); "
+                                        "a bare number is refused", model=7)
 
 
 @dataclass
