@@ -160,11 +160,24 @@ def _runs(dev: dict, scenarios=("paper_1", "paper_2"), chattering=None, d_est=No
     return out
 
 
-def test_reduction_pairs_seeds_and_skips_diverged():
+def test_reduction_pairs_seeds_and_counts_divergence_as_an_outcome():
     assert claims.reduction([1, 2, 3], [0.5, 1, 1.5]) == pytest.approx(50.0, rel=1e-12)
-    # a diverged seed (NaN) in either controller drops that seed from both sums
-    assert claims.reduction([1, 2, np.nan, 4], [0.5, 1, 9.0, np.nan]) == pytest.approx(50.0, rel=1e-12)
-    assert math.isnan(claims.reduction([np.nan], [1.0]))
+    # seeds both diverged on (NaN in both) are the same outcome: left out of both sums
+    assert claims.reduction([1, 2, np.nan, 4], [0.5, 1, np.nan, 2]) == pytest.approx(50.0, rel=1e-12)
+    # the candidate diverged where the reference did not: unboundedly worse, whatever the other seeds say
+    assert claims.reduction([1, 2, 3, 4], [0.5, 1, 1.5, np.nan]) == -math.inf
+    # only the reference diverged: the candidate is the better, at the bound
+    assert claims.reduction([1, 2, np.nan], [1.5, 2.5, 3.0]) == 100.0
+    assert math.isnan(claims.reduction([np.nan], [np.nan]))
+
+
+def test_a_diverging_candidate_makes_the_claim_false_and_is_counted():
+    runs = _runs({"pid": 4.0, "smc": 2.0, "smc_ndo": 1.0, "smc_ndo_nno": 0.6})
+    runs[("smc_ndo_nno", "paper_2")][claims.DEVIATION][0] = np.nan  # one diverged seed of four
+    st = claims.statistics(runs, ["paper_1", "paper_2"])
+    assert st["nno_vs_smc@paper_2"] == -math.inf and st["nno_vs_smc_holds"] == 0.0
+    assert st["diverged:smc_ndo_nno"] == pytest.approx(1 / (2 * len(runs[("pid", "paper_1")][claims.DEVIATION])))
+    assert st["diverged:smc"] == 0.0
 
 
 def test_claim_statistics_on_constructed_runs():

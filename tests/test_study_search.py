@@ -117,12 +117,28 @@ def test_the_warm_start_is_the_uniform_samples_best():
     assert search.warm_readings(rows, ["a"], 0) == []
 
 
-def test_the_global_analyses_take_clipped_statistics():
-    rows = pd.DataFrame({"nno_vs_ndo": [30.0, -1.0e4, np.nan, 250.0, -50.0]})
-    y, replaced, clipped = analysis.outputs(rows, "nno_vs_ndo")
-    assert replaced == 1 and clipped == 2
-    # NaN: the median of the clipped rest (30, -100, 100, -50)
-    assert list(y) == pytest.approx([30.0, -100.0, -10.0, 100.0, -50.0], rel=1e-12)
+def test_the_global_analyses_take_bounded_statistics_and_impute_nothing():
+    rows = pd.DataFrame({"nno_vs_ndo": [30.0, -1.0e4, np.nan, 250.0, -50.0, -np.inf]})
+    y, undefined, clipped = analysis.outputs(rows, "nno_vs_ndo")
+    assert undefined == 1 and clipped == 3
+    # -inf (the candidate diverged) and NaN (no defined statistic) are a claim that cannot hold: -100 %, not a
+    # median of the others (which was -10 here and made a diverged sample look like an ordinary one)
+    assert list(y) == pytest.approx([30.0, -100.0, -100.0, 100.0, -50.0, -100.0], rel=1e-12)
+
+
+def test_divergence_shares_and_sobol_power():
+    rows = pd.DataFrame({"diverged:pid": [0.0, 0.0, 0.0, 0.0], "diverged:smc": [0.0, 0.5, 0.0, 0.25],
+                         "diverged:smc_ndo": [0.0] * 4, "diverged:smc_ndo_nno": [1.0, 1.0, 1.0, 1.0]})
+    div = analysis.divergence(rows).set_index("controller")
+    assert div.loc["smc", "diverging_samples"] == 2 and div.loc["smc", "share"] == pytest.approx(0.5)
+    assert div.loc["smc", "runs_diverged"] == pytest.approx(0.1875)
+    assert div.loc["smc_ndo_nno", "share"] == 1.0 and div.loc["pid", "share"] == 0.0
+    low, high = analysis.wilson(2, 4)
+    assert div.loc["smc", "share_low"] == pytest.approx(low) and 0.0 < low < 0.5 < high < 1.0
+    table = pd.DataFrame({"ST": [0.5, 0.05, 0.3], "ST_conf": [0.08, 0.4, 0.12]})
+    power = analysis.sobol_power(table)  # the 0.4 half-width belongs to an index below 0.1: not counted
+    assert power["relevant"] == 2 and power["widest_half_width"] == pytest.approx(0.12) and not power["met"]
+    assert analysis.sobol_power(table.assign(ST_conf=[0.08, 0.4, 0.1]))["met"]
 
 
 @pytest.mark.parametrize("args, named", [

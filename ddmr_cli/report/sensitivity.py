@@ -257,7 +257,13 @@ def write_report(out: Path) -> Path:
         if source is not None and (source["label"] == "faithful").any():
             faithful_row = source[source["label"] == "faithful"].iloc[0]
             break
-    lines = ["# Robustness of the paper's claims", "",
+    cfg = next((c for c in (_study_config(out / st) for st in stage) if c is not None), None)
+    ci_sized = bool(cfg is not None and cfg.study.get("ci_sized", False))
+    lines = ["# Robustness of the paper's claims", ""]
+    if ci_sized:
+        lines += ["> **A CI-sized study (`study=quick`): every stage runs, on a handful of samples, to check the "
+                  "pipeline. Its numbers are not to be read.**", ""]
+    lines += [
              "Every constant the paper leaves open (docs/model.md §11 gives the box and why) varied over a plausible "
              "box; each sample runs PID, SMC, SMC-NDO and SMC-NDO-NNO in both scenarios on the same paired seeds. "
              "Claim statistics are reductions in % of the second controller against the first, "
@@ -275,16 +281,35 @@ def write_report(out: Path) -> Path:
               f"(the others faithful). Morris and Sobol take each statistic clipped to ±{analysis.CLIP:g} % "
               "(a reduction is at most 100 %; below -100 % every claim is equally false, and a diverging NN's "
               "-10^4 % would carry the whole variance). " + " ".join(seeds_note), ""]
-    if morris is not None and "replaced" in morris and morris["replaced"].max() > 0:
-        lines += [f"({int(morris['replaced'].max())} Morris samples had a NaN statistic, set to the median for "
-                  f"the estimator.)", ""]
+    for name, table in (("Morris", morris), ("Sobol", sobol)):
+        if table is not None and "undefined" in table and table["undefined"].max() > 0:
+            lines += [f"({int(table['undefined'].max())} {name} samples had no defined statistic (every seed "
+                      f"diverged for both controllers, or a failed job): taken as -{analysis.CLIP:g} %, a claim that "
+                      f"cannot hold there; nothing is imputed.)", ""]
+    divergence = _read_csv(out / "lhs" / analysis.DIVERGENCE_CSV)
+    if divergence is not None:
+        lines += ["### Where each controller diverges", "",
+                  "Divergence is an outcome, not a gap: a run that diverged counts as unboundedly worse than one "
+                  "that did not, so a claim whose candidate diverges at a reading does not hold there (-100 % in "
+                  "Morris and Sobol). The share of the box (lhs stage) where each controller diverges on at least "
+                  "one seed, with a Wilson 95 % interval, and the share of its runs that diverged:", "",
+                  md_table(["Controller", "Samples", "Diverging samples", "Share of the box [95 % CI]",
+                            "Runs diverged"],
+                           [[r.controller, r.samples, r.diverging_samples,
+                             f"{100 * r.share:.1f} % [{100 * r.share_low:.1f}, {100 * r.share_high:.1f}]",
+                             f"{100 * r.runs_diverged:.1f} %"] for r in divergence.itertuples()]), ""]
     for name, table in (("Morris", morris), ("Sobol", sobol)):
         if table is not None and "clipped" in table and table["clipped"].max() > 0:
             per = table.groupby("claim", sort=False)["clipped"].max()
             lines += [f"({name} samples clipped to ±{analysis.CLIP:g} %: "
                       + ", ".join(f"{c} {int(n)}" for c, n in per.items() if n) + ".)", ""]
     if sobol is not None:
-        lines += ["### Sobol indices", "", md_table(["Claim", "Parameter", "S1", "S1 95 % CI", "ST", "ST 95 % CI"],
+        power = analysis.sobol_power(sobol)
+        lines += ["### Sobol indices", "",
+                  f"Power: the widest 95 % CI half-width of a total index above {analysis.SOBOL_RELEVANT:g} is "
+                  f"{power['widest_half_width']:.3f} (target <= {power['target']:g}: "
+                  + ("met)." if power["met"] else "**not met**: the indices are not decided; run the study with "
+                     "more Sobol samples (study.sobol.base) before reading them).") , "", md_table(["Claim", "Parameter", "S1", "S1 95 % CI", "ST", "ST 95 % CI"],
                   [[r.claim, r.parameter, _fmt(r.S1, 2), f"± {_fmt(r.S1_conf, 2)}", _fmt(r.ST, 2),
                     f"± {_fmt(r.ST_conf, 2)}"] for r in sobol.itertuples()]), ""]
     figures = []

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
 MORRIS_CSV = "morris.csv"
+DIVERGENCE_CSV = "divergence.csv"
 SOBOL_CSV = "sobol.csv"
 HOLDS_CSV = "holds.csv"
 CALIBRATION_JSON = "calibration.json"
@@ -33,19 +34,48 @@ CALIBRATION_JSON = "calibration.json"
 CLIP = 100.0
 
 
+#: the widest 95 % CI half-width the Sobol stage aims at for a total index above :data:`SOBOL_RELEVANT`
+SOBOL_TARGET_HALF_WIDTH = 0.1
+SOBOL_RELEVANT = 0.1
+
+
 def outputs(rows: "pd.DataFrame", claim: str) -> tuple[np.ndarray, int, int]:
-    """A claim statistic per sample as the global analyses take it: clipped to +-:data:`CLIP`, NaN (a failed or
-    diverged sample) replaced by the median of the others (SALib's estimators need every sample); returns the
-    values, how many were replaced and how many clipped."""
+    """A claim statistic per sample as the global analyses take it, bounded to +-:data:`CLIP`: a diverged
+    candidate's -inf (:func:`ddmr_cli.study.claims.reduction`) is -100 %, nothing is imputed; a sample with no
+    defined statistic (every seed diverged for both controllers, or a failed job) is a claim that cannot hold
+    there, also -100 %. Returns the values, how many samples were undefined and how many were bounded."""
     y = rows[claim].to_numpy(float) if claim in rows else np.full(len(rows), np.nan)
-    bad = ~np.isfinite(y)
-    if bad.all():
-        return np.zeros_like(y), int(bad.sum()), 0
-    y = y.copy()
-    clipped = int(np.sum(np.abs(y[~bad]) > CLIP))
-    y[~bad] = np.clip(y[~bad], -CLIP, CLIP)
-    y[bad] = float(np.median(y[~bad]))
-    return y, int(bad.sum()), clipped
+    undefined = np.isnan(y)
+    y = np.where(undefined, -CLIP, y)
+    clipped = int(np.sum(np.abs(y[~undefined]) > CLIP))
+    return np.clip(y, -CLIP, CLIP), int(undefined.sum()), clipped
+
+
+def divergence(rows: "pd.DataFrame") -> "pd.DataFrame":
+    """Per controller: the share of samples (readings of the box) on which it diverged on at least one seed, with
+    a 95 % Wilson interval, and the mean share of its runs that diverged."""
+    import pandas as pd
+
+    out = []
+    for controller in claim_stats.CONTROLLERS:
+        col = f"diverged:{controller}"
+        share = rows[col].to_numpy(float) if col in rows else np.full(len(rows), np.nan)
+        known = np.isfinite(share)
+        k, n = int(np.sum(share[known] > 0)), int(known.sum())
+        low, high = wilson(k, n)
+        out.append({"controller": controller, "samples": n, "diverging_samples": k,
+                    "share": k / n if n else math.nan, "share_low": low, "share_high": high,
+                    "runs_diverged": float(share[known].mean()) if n else math.nan})
+    return pd.DataFrame(out)
+
+
+def sobol_power(table: "pd.DataFrame") -> dict:
+    """Whether the Sobol stage decides: the widest 95 % CI half-width among total indices above
+    :data:`SOBOL_RELEVANT`, against :data:`SOBOL_TARGET_HALF_WIDTH`."""
+    relevant = table[table["ST"] > SOBOL_RELEVANT]
+    widest = float(relevant["ST_conf"].max()) if len(relevant) else float(table["ST_conf"].max())
+    return {"relevant": int(len(relevant)), "widest_half_width": widest, "target": SOBOL_TARGET_HALF_WIDTH,
+            "met": bool(widest <= SOBOL_TARGET_HALF_WIDTH)}
 
 
 def _aligned(rows: "pd.DataFrame", design: Design) -> "pd.DataFrame":
@@ -73,12 +103,12 @@ def morris(rows: "pd.DataFrame", design: Design, levels: int, seed: int) -> "pd.
     rows = _aligned(rows, design)
     out = []
     for claim in claim_stats.CLAIM_IDS:
-        y, replaced, clipped = outputs(rows, claim)
+        y, undefined, clipped = outputs(rows, claim)
         res = morris_analyze.analyze(problem(design.names), design.unit, y, num_levels=levels,
                                      seed=bootstrap_seed(seed), print_to_console=False)
         for i, name in enumerate(design.names):
             out.append({"claim": claim, "parameter": name, "mu": res["mu"][i], "mu_star": res["mu_star"][i],
-                        "mu_star_conf": res["mu_star_conf"][i], "sigma": res["sigma"][i], "replaced": replaced,
+                        "mu_star_conf": res["mu_star_conf"][i], "sigma": res["sigma"][i], "undefined": undefined,
                         "clipped": clipped})
     return pd.DataFrame(out)
 
@@ -92,7 +122,7 @@ def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "p
     rows = _aligned(rows, design)
     out = []
     for claim in claim_stats.CLAIM_IDS:
-        y, replaced, clipped = outputs(rows, claim)
+        y, undefined, clipped = outputs(rows, claim)
         if np.ptp(y) <= 0:  # a constant statistic: no variance to apportion
             res = {k: np.full(len(design.names), np.nan) for k in ("S1", "S1_conf", "ST", "ST_conf")}
         else:
@@ -100,7 +130,8 @@ def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "p
                                         conf_level=0.95, seed=bootstrap_seed(seed), print_to_console=False)
         for i, name in enumerate(design.names):
             out.append({"claim": claim, "parameter": name, "S1": res["S1"][i], "S1_conf": res["S1_conf"][i],
-                        "ST": res["ST"][i], "ST_conf": res["ST_conf"][i], "replaced": replaced, "clipped": clipped})
+                        "ST": res["ST"][i], "ST_conf": res["ST_conf"][i], "undefined": undefined,
+                        "clipped": clipped})
     return pd.DataFrame(out)
 
 
@@ -187,11 +218,19 @@ def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
         table = sobol(rows, design, int(study.sobol.resamples), int(study.sampler_seed))
         io.write_csv(sweep_dir / SOBOL_CSV, table)
         for claim, part in table.groupby("claim", sort=False):
-            lines.append(f"sobol {claim} ST: " + ", ".join(f"{r.parameter} {r.ST:.2f}" for r in part.itertuples()))
+            lines.append(f"sobol {claim} ST: " + ", ".join(f"{r.parameter} {r.ST:.2f} +- {r.ST_conf:.2f}"
+                                                            for r in part.itertuples()))
+        power = sobol_power(table)
+        lines.append(f"sobol CI: widest 95 % half-width of a total index above {SOBOL_RELEVANT:g}: "
+                     f"{power['widest_half_width']:.3f} (target <= {power['target']:g}: "
+                     f"{'met' if power['met'] else 'NOT met, more samples needed'})")
     if design.stage in ("lhs", "morris", "sobol"):
         table = holds(rows)
         io.write_csv(sweep_dir / HOLDS_CSV, table)
         lines += [f"{r.claim} holds in {r.holds}/{r.samples} samples" for r in table.itertuples()]
+        table = divergence(rows)
+        io.write_csv(sweep_dir / DIVERGENCE_CSV, table)
+        lines += [f"{r.controller} diverges in {r.diverging_samples}/{r.samples} samples" for r in table.itertuples()]
     if design.stage == "calibration":
         result = calibration(rows, box.global_names())
         io.write_text(sweep_dir / CALIBRATION_JSON, json.dumps(result, indent=2))
@@ -201,5 +240,6 @@ def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
     return lines
 
 
-__all__ = ["bootstrap_seed", "morris", "sobol", "holds", "calibration", "analyse", "outputs", "wilson", "MORRIS_CSV",
+__all__ = ["bootstrap_seed", "morris", "sobol", "sobol_power", "holds", "divergence", "calibration", "analyse",
+           "outputs", "wilson", "DIVERGENCE_CSV", "MORRIS_CSV",
            "SOBOL_CSV", "HOLDS_CSV", "CALIBRATION_JSON", "CLIP"]

@@ -1,8 +1,11 @@
 """Claim statistics of one reading (docs/model.md §11), from the per-seed metrics of the four controllers in both
 scenarios, every comparison paired by seed (the same seed gives every controller the same noise).
 
-A reduction of controller b against a is ``100 (1 - sum_k b_k / sum_k a_k)`` [%] over the seeds k both ran
-without diverging (the paired ratio of means). Each claim has a statistic per scenario and a scalar over both
+A reduction of controller b against a is ``100 (1 - sum_k b_k / sum_k a_k)`` [%] over the paired seeds k (the
+paired ratio of means). Divergence is an outcome, not a gap (issue 25): a diverged run's metric counts as
+unbounded, so where b diverged on a seed a did not, the reduction is -inf (b unboundedly worse; the global
+analyses bound it at -100 %), where only a diverged it is 100 %, and seeds on which both diverged are left out
+(the same outcome); NaN only when both diverged on every seed. Each claim has a statistic per scenario and a scalar over both
 (their mean; the ranking: the smaller), which the global analyses take, and it *holds* at a reading when its
 statistic lies in the claim's range in every scenario:
 
@@ -87,13 +90,32 @@ Runs = Mapping[tuple[str, str], Mapping[str, np.ndarray]]
 
 
 def reduction(reference: np.ndarray, candidate: np.ndarray) -> float:
-    """``100 (1 - sum candidate / sum reference)`` [%] over the seeds both have finite; NaN without any."""
+    """``100 (1 - sum candidate / sum reference)`` [%] over the paired seeds, a diverged run's metric (NaN)
+    counting as unbounded: -inf when the candidate diverged on a seed the reference did not, 100 when only the
+    reference diverged; seeds both diverged on are left out; NaN when that leaves none."""
     a, b = np.asarray(reference, float), np.asarray(candidate, float)
-    ok = np.isfinite(a) & np.isfinite(b)
-    total = float(np.sum(a[ok]))
-    if not ok.any() or not total > 0:
+    lost_a, lost_b = ~np.isfinite(a), ~np.isfinite(b)
+    keep = ~(lost_a & lost_b)
+    if not keep.any():
         return math.nan
-    return 100.0 * (1.0 - float(np.sum(b[ok])) / total)
+    if lost_b[keep].any():
+        return -math.inf
+    if lost_a[keep].any():
+        return 100.0
+    total = float(np.sum(a[keep]))
+    if not total > 0:
+        return math.nan
+    return 100.0 * (1.0 - float(np.sum(b[keep])) / total)
+
+
+def divergence(runs: "Runs", scenarios: Sequence[str]) -> dict[str, float]:
+    """``diverged:<controller>``: the share of this reading's seeds and scenarios on which the controller diverged
+    (its steady-state deviation is NaN)."""
+    out = {}
+    for controller in CONTROLLERS:
+        lost = [~np.isfinite(np.asarray(runs[(controller, s)][DEVIATION], float)) for s in scenarios]
+        out[f"diverged:{controller}"] = float(np.mean(np.concatenate(lost))) if lost else math.nan
+    return out
 
 
 def scenario_statistics(runs: Runs, scenario: str) -> dict[str, float]:
@@ -119,9 +141,10 @@ def statistics(runs: Runs, scenarios: Sequence[str]) -> dict[str, float]:
         values = [per[s][claim.id] for s in scenarios]
         for s, v in zip(scenarios, values):
             out[f"{claim.id}@{s}"] = v
-        finite = all(np.isfinite(values))
-        out[claim.id] = (min(values) if claim.id == "ranking" else float(np.mean(values))) if finite else math.nan
-        out[f"{claim.id}_holds"] = float(all(claim.holds(v) for v in values)) if finite else math.nan
+        defined = not any(math.isnan(v) for v in values)  # -inf (the candidate diverged) is defined: false
+        out[claim.id] = (min(values) if claim.id == "ranking" else float(np.mean(values))) if defined else math.nan
+        out[f"{claim.id}_holds"] = float(all(claim.holds(v) for v in values)) if defined else math.nan
+    out.update(divergence(runs, scenarios))
     return out
 
 
@@ -161,5 +184,5 @@ def distance(ours: Mapping[str, float]) -> float:
     return float(np.sqrt(np.mean(r ** 2))) if np.all(np.isfinite(r)) else math.nan
 
 
-__all__ = ["Claim", "claims", "CLAIM_IDS", "CONTROLLERS", "METRICS", "reduction", "scenario_statistics",
+__all__ = ["Claim", "claims", "CLAIM_IDS", "CONTROLLERS", "METRICS", "reduction", "divergence", "scenario_statistics",
            "statistics", "table4", "paper_table4", "log_residuals", "distance"]
