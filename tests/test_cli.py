@@ -4,6 +4,7 @@ basic launcher (bit-identical numbers), failing jobs, resume, bad input."""
 from __future__ import annotations
 
 import json
+import shutil
 import os
 import re
 import signal
@@ -136,7 +137,7 @@ def test_resume_skips_complete_jobs_and_reruns_missing_ones(tmp_path):
     first = run_ddmr(args, cwd=tmp_path)
     assert first.returncode == 0, first.stderr[-2000:]
     before = _metrics(sweep_dir)
-    (sweep_dir / "controller=smc,scenario=paper_1" / "summary.json").unlink()
+    shutil.rmtree(sweep_dir / "controller=smc,scenario=paper_1")  # a missing job: rerun, the others skipped
     second = run_ddmr(args, cwd=tmp_path)
     assert second.returncode == 0, second.stderr[-2000:]
     log = second.stdout + second.stderr
@@ -145,6 +146,13 @@ def test_resume_skips_complete_jobs_and_reruns_missing_ones(tmp_path):
     # a changed config (another seed range) is not skipped
     third = run_ddmr([*args, "run.base_seed=5"], cwd=tmp_path)
     assert third.returncode == 0 and "skipped" not in third.stdout + third.stderr
+    # a job dir whose summary.json is gone holds files nothing proves ddmr wrote: refused in one line, kept
+    job = sweep_dir / "controller=smc,scenario=paper_1"
+    (job / "summary.json").unlink()
+    kept = sorted(p.name for p in job.iterdir())
+    fourth = run_ddmr(args, cwd=tmp_path)
+    assert fourth.returncode == 1 and "in the way" in fourth.stderr, fourth.stderr[-2000:]
+    assert sorted(p.name for p in job.iterdir()) == kept
 
 
 @pytest.mark.parametrize("override,message", [
