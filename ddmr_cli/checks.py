@@ -98,5 +98,28 @@ def starts_increasing_from_zero(key: str, items: Sequence[tuple[str, float]], wh
         previous = start
 
 
-__all__ = ["finite", "positive", "non_negative", "integer", "boolean", "one_of", "per_wheel", "compact",
+__all__ = ["first_non_finite", "finite", "positive", "non_negative", "integer", "boolean", "one_of", "per_wheel", "compact",
            "starts_increasing_from_zero"]
+
+
+def first_non_finite(value: Any, path: str = "") -> str | None:
+    """The path (``ginv[0]``, ``nominal.jinv_p``) of the first NaN or inf number in a derived model quantity:
+    a float, a named tuple, a tuple or list, or a float array, nested; None when every number is finite."""
+    if hasattr(value, "_fields"):
+        items = ((f"{path}.{name}" if path else name, getattr(value, name)) for name in value._fields)
+    elif isinstance(value, (tuple, list)):
+        items = ((f"{path}[{i}]", v) for i, v in enumerate(value))
+    elif isinstance(value, np.ndarray):
+        if value.dtype.kind in "fc" and not np.all(np.isfinite(value)):
+            return f"{path}[{np.flatnonzero(~np.isfinite(value.ravel()))[0]}]"
+        return None
+    elif isinstance(value, (float, np.floating)) and not isinstance(value, bool):
+        return None if math.isfinite(value) else path
+    else:
+        return None
+    for sub_path, sub in items:
+        found = first_non_finite(sub, sub_path)
+        if found is not None:
+            return found
+    return None
+

@@ -109,6 +109,9 @@ class RBFNetworkObserver:
     def __init__(self, *, n_neurons: int, width: float, learning_rate, center_min: float, center_max: float) -> None:
         self.n_neurons = integer("controller.nn.n_neurons", n_neurons, 1)
         self.width = positive("controller.nn.width", width)
+        square = self.width * self.width
+        if not (square > 0.0 and math.isfinite(0.5 / square)):  # (27)'s 1 / (2 sigma^2): a zero division compiled
+            raise ConfigError("controller.nn.width", width, "is too small: 1 / (2 width^2) overflows")
         self.learning_rate = per_wheel("controller.nn.learning_rate", learning_rate, positive)
         self.center_min = finite("controller.nn.center_min", center_min)
         self.center_max = finite("controller.nn.center_max", center_max)

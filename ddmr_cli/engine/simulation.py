@@ -18,12 +18,12 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ddmr_cli.compiled import jit_enabled, plain, thread_count
-from ddmr_cli.checks import finite, non_negative, one_of, per_wheel, positive
+from ddmr_cli.checks import finite, first_non_finite, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
-from ddmr_cli.engine.kernels import call_identity, check_single_signature, stepper_for
+from ddmr_cli.engine.kernels import check_single_signature, compiled_run_chunk
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator
 from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SERIES_CHANNELS, SimulationResult
@@ -169,6 +169,23 @@ class Simulation:
                 raise
             raise ConfigError("control.rate", self.control_rate,
                               f"the control period {m * dt:g} s {exc.rule}") from None
+        self._check_derived_quantities_finite(m * dt)
+
+    def _check_derived_quantities_finite(self, control_dt: float) -> None:
+        """Every model quantity the step loop starts from is finite (the class of issue 26: a value that passes
+        its own range check but makes a derived quantity inf or NaN before the first step is refused, naming the
+        group and the quantity, instead of a run of NaN metrics)."""
+        nominal = NominalModel.from_robot(self.robot)
+        derived = (("robot", "the plant", self.robot.plant()), ("robot", "the nominal model", nominal),
+                   ("terrain", "the rolling-resistance torque",
+                    self.robot.rolling_resistance_torque(self.terrain.mu)),
+                   ("controller", "the law parameters", self.controller.law_parameters(nominal, control_dt)),
+                   ("simulation.initial_pose", "the initial wheel speeds", _initial_wheel_speeds(self)))
+        for key, what, value in derived:
+            bad = first_non_finite(value)
+            if bad is not None:
+                raise ConfigError(key, bad or what, f"{what} is not finite there before the first step: a value "
+                                                    f"of {key} is too extreme for the model")
 
 
 def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
@@ -294,7 +311,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                 args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
                         slot, band_buffer, first)
                 if loop is None:
-                    loop = stepper_for(controller.laws.__name__, call_identity(args + (0, n_runs))).run_chunk
+                    loop = compiled_run_chunk(controller.laws.__name__, args + (0, n_runs))
 
                 def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
                     noise.next_chunk(n, xi, block)
