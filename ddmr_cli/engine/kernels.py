@@ -15,13 +15,19 @@ The copy's file name is its identity: a hash of everything it was compiled for (
   run record with the sensor's and the actuator's state, whose delay line's length depends on the delay; the
   controller's state; the metric accumulators), the World, plant and parameter tuples field by field, every
   array's dtype, rank and layout;
-- the Python, numba and llvmlite versions.
+- the Python, numba and llvmlite versions and the CPU target numba compiles for.
 
-So each copy's numba index holds exactly one compiled signature. numba's index alone is not enough: a copy
-shared by several signatures (one per actuator delay, say) held 16 entries after ordinary use, and a warm cache
-handed a call an entry compiled for another layout (issue 31; before that, SMC-NDO's and SMC-NDO-NNO's state
-records, tests/test_engine.py). :func:`stepper_for` also checks, after the call, that the copy holds no other
-signature (:func:`check_single_signature`).
+So each copy's numba index holds exactly one compiled signature. numba's index alone is not enough: it is not
+safe against two processes saving different signatures of one function at once (both read the index, both
+choose data file 1, and the index can end up naming one signature while the data file holds the other's code).
+Two sweep workers compiling one controller for two actuator delays did that, and the next process running one
+of the delays loaded the other's code (issue 31, tests/test_kernel_cache.py; before that, SMC-NDO's and
+SMC-NDO-NNO's state records, tests/test_engine.py). With one signature per copy, the processes that save into
+one copy save the same code.
+
+:func:`compiled_run_chunk` loads (or compiles) the loop before the first step and checks that what numba handed
+back was compiled for exactly this call; if not, it says which cache entry, deletes it and recompiles.
+After the first chunk the engine checks that no second signature was compiled (:func:`check_single_signature`).
 
 The cache directory is ``$DDMR_CACHE_DIR``, else ``$XDG_CACHE_HOME/ddmr``, else ``~/.cache/ddmr``, else a
 directory under the system's temporary directory when those are not writable.
@@ -40,7 +46,7 @@ from pathlib import Path
 from types import ModuleType
 
 import ddmr_cli
-from ddmr_cli.compiled import AVAILABLE
+from ddmr_cli.compiled import AVAILABLE, jit_enabled
 
 _TEMPLATE_MODULE = "ddmr_cli.engine.stepper"
 _LAW_IMPORT = re.compile(r"^from ddmr_cli\.control\.open_loop import (\w+) as (controller_\w+)  # controller laws$",
@@ -67,12 +73,16 @@ def cache_dir() -> Path:
 
 
 def _versions() -> str:
-    """The interpreter's and the compiler's versions (a compiled copy is valid for these only)."""
+    """The interpreter's and the compiler's versions and the CPU target (numba's codegen magic tuple: triple, CPU
+    name and features); a compiled copy is valid for these only."""
     if not AVAILABLE:
         return f"python={sys.version} numba=none"
     import llvmlite
     import numba
-    return f"python={sys.version} numba={numba.__version__} llvmlite={llvmlite.__version__}"
+    from numba.core.registry import cpu_target
+
+    target = cpu_target.target_context.codegen().magic_tuple()
+    return f"python={sys.version} numba={numba.__version__} llvmlite={llvmlite.__version__} target={target}"
 
 
 @lru_cache(maxsize=1)
@@ -157,6 +167,42 @@ def stepper_for(law_module: str, identity: str = "") -> ModuleType:
     return module
 
 
+def compiled_run_chunk(law_module: str, args: tuple):
+    """The step loop's ``run_chunk`` for a call with these arguments, loaded from the disk cache or compiled now.
+
+    What numba's cache hands back is checked against the call's own signature (a cheap set comparison); an
+    entry compiled for another call is named on stderr, deleted, and the loop recompiled, so a stale or
+    corrupted cache entry never runs (issue 31)."""
+    module = stepper_for(law_module, call_identity(args))
+    function = module.run_chunk
+    if not jit_enabled():
+        return function
+    from numba import njit, typeof
+
+    signature = tuple(typeof(arg) for arg in args)
+    path = Path(module.__file__)
+    entries = sorted((path.parent / "__pycache__").glob(f"{path.stem}.*"))
+    try:
+        function.compile(signature)
+        problem = None if set(function.overloads) == {signature} else "was compiled for another call"
+    except Exception as exc:  # noqa: BLE001 - a cache entry that does not even load is as stale as a wrong one
+        if not entries:
+            raise  # nothing was loaded: a genuine compile error
+        problem = f"does not load ({type(exc).__name__}: {exc})"
+    if problem is None:
+        return function
+    print(f"ddmr: warning: the cached step loop {path} (entries {', '.join(p.name for p in entries)}) {problem}; "
+          f"deleting it and recompiling", file=sys.stderr)
+    for entry in entries:
+        entry.unlink(missing_ok=True)
+    function = njit(cache=True, nogil=True)(function.py_func)
+    function.compile(signature)
+    if set(function.overloads) != {signature}:
+        raise RuntimeError(f"{path}: the recompiled step loop does not match its call (delete {cache_dir()} and "
+                           f"report this)")
+    return function
+
+
 def check_single_signature(function) -> None:
     """Raise RuntimeError if a compiled copy holds more than one signature (its file name promises one)."""
     signatures = getattr(function, "signatures", None)
@@ -165,4 +211,4 @@ def check_single_signature(function) -> None:
                            f"its cache key must name one (delete {cache_dir()} and report this)")
 
 
-__all__ = ["cache_dir", "call_identity", "check_single_signature", "stepper_for"]
+__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_run_chunk", "stepper_for"]
