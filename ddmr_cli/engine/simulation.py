@@ -18,7 +18,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ddmr_cli.compiled import jit_enabled, plain, thread_count
-from ddmr_cli.checks import finite, non_negative, one_of, per_wheel, positive
+from ddmr_cli.checks import finite, first_non_finite, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
@@ -169,6 +169,23 @@ class Simulation:
                 raise
             raise ConfigError("control.rate", self.control_rate,
                               f"the control period {m * dt:g} s {exc.rule}") from None
+        self._check_derived_quantities_finite(m * dt)
+
+    def _check_derived_quantities_finite(self, control_dt: float) -> None:
+        """Every model quantity the step loop starts from is finite (the class of issue 26: a value that passes
+        its own range check but makes a derived quantity inf or NaN before the first step is refused, naming the
+        group and the quantity, instead of a run of NaN metrics)."""
+        nominal = NominalModel.from_robot(self.robot)
+        derived = (("robot", "the plant", self.robot.plant()), ("robot", "the nominal model", nominal),
+                   ("terrain", "the rolling-resistance torque",
+                    self.robot.rolling_resistance_torque(self.terrain.mu)),
+                   ("controller", "the law parameters", self.controller.law_parameters(nominal, control_dt)),
+                   ("simulation.initial_pose", "the initial wheel speeds", _initial_wheel_speeds(self)))
+        for key, what, value in derived:
+            bad = first_non_finite(value)
+            if bad is not None:
+                raise ConfigError(key, bad or what, f"{what} is not finite there before the first step: a value "
+                                                    f"of {key} is too extreme for the model")
 
 
 def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
