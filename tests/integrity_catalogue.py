@@ -428,6 +428,54 @@ def c_a_huge_kept_series_list(tmp):
     assert list(tmp.iterdir()) == []
 
 
+TUNE = ["-m", "+tune=smc", "simulation.duration=0.1", "metrics.settle_time=0.05", "tuning.n_trials=2"]
+
+
+@case(6, "input")
+def c_a_tuning_budget_of_zero_trials(tmp):
+    refused(ddmr(tmp, "run", *TUNE, "tuning.n_trials=0", f"hydra.sweep.dir={tmp / 't'}", timeout=60), 2,
+            "tuning.n_trials=0")
+    assert list(tmp.iterdir()) == []
+
+
+@case(6, "input")
+def c_an_inverted_search_range(tmp):
+    refused(ddmr(tmp, "run", *TUNE, "controller.lam=interval(5,1)", f"hydra.sweep.dir={tmp / 't'}", timeout=60), 2,
+            "controller.lam", "inverted")
+    assert list(tmp.iterdir()) == []
+
+
+@case(6, "input")
+def c_a_log_range_from_zero(tmp):
+    refused(ddmr(tmp, "run", *TUNE, "controller.lam=tag(log,interval(0,10))", f"hydra.sweep.dir={tmp / 't'}",
+                 timeout=60), 2, "controller.lam", "low > 0")
+    assert list(tmp.iterdir()) == []
+
+
+@case(6, "input")
+def c_an_unknown_sampler(tmp):
+    refused(ddmr(tmp, "run", *TUNE, "hydra.sweeper.sampler._target_=optuna.samplers.FooSampler",
+                 f"hydra.sweep.dir={tmp / 't'}", timeout=60), 2, "hydra.sweeper.sampler._target_", "FooSampler")
+    assert list(tmp.iterdir()) == []
+
+
+@case(6, "fault")
+def c_a_corrupt_study_storage(tmp):
+    study = tmp / "t"
+    study.mkdir()
+    (study / "study.db").write_bytes(bytes(range(256)) * 12)
+    before = tree(tmp)
+    refused(ddmr(tmp, "run", *TUNE, f"hydra.sweep.dir={study}", timeout=60), 1, "study.db", "not a readable")
+    assert tree(tmp) == before
+
+
+@case(6, "input")
+def c_a_robot_value_that_overflows(tmp):
+    refused(ddmr(tmp, "run", *TINY, "robot.mass=1e308", "robot.wheel_radius=1e308", f"hydra.run.dir={tmp / 'r'}",
+                 timeout=60), 2, "robot")
+    assert list(tmp.iterdir()) == []
+
+
 # --- 8. messages name what the user typed ---------------------------------------------------------------------
 
 

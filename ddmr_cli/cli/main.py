@@ -431,6 +431,9 @@ def cmd_run(argv: list[str]) -> int:
         launch = prepare(argv, overrides, multirun, config_name, config_dir, search_dir)
     except UsageError as exc:
         return _fail(str(exc))
+    except OSError as exc:  # a fault found while planning (an unreadable study storage): one line, exit 1
+        print(f"ddmr: error: {exc}", file=sys.stderr)
+        return EXIT_FAILED
     return run_locked(launch)
 
 

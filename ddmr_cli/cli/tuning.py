@@ -283,9 +283,27 @@ def check_study(cfg: DictConfig, overrides=()) -> list[Interval]:
         raise ConfigError("metrics.settle_time", settle, f"must be < simulation.duration ({duration:g} s): the "
                                                          f"objective {OBJECTIVE_METRIC} counts the steps after it")
     space = search_space(cfg, overrides)
+    _check_sampler(cfg)
     for name in t.scenarios:
         validate_config(scenario_config(cfg, name))
     return space
+
+
+def _check_sampler(cfg: DictConfig) -> None:
+    """The Optuna sampler the sweeper will instantiate exists (else Hydra fails after the sweep dir is made)."""
+    import importlib
+
+    sampler = cfg.hydra.sweeper.get("sampler") if "sweeper" in cfg.get("hydra", {}) else None
+    target = sampler.get("_target_") if sampler is not None else None
+    if target is None:
+        return
+    module, _, name = str(target).rpartition(".")
+    try:
+        if not isinstance(getattr(importlib.import_module(module), name), type):
+            raise TypeError(target)
+    except (ImportError, AttributeError, TypeError, ValueError):
+        raise ConfigError("hydra.sweeper.sampler._target_", str(target), "no such Optuna sampler (e.g. "
+                          "optuna.samplers.TPESampler, optuna.samplers.NSGAIISampler)") from None
 
 
 def study_hash(cfg: DictConfig, overrides=()) -> str:
@@ -348,6 +366,10 @@ def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
     return session_overrides(sweep_dir, str(cfg.hydra.sweeper.study_name), budget, seed)
 
 
+class StorageError(OSError):
+    """The study's storage file exists but cannot be read as an Optuna study database (a fault: exit 1)."""
+
+
 def session_overrides(sweep_dir: Path, study_name: str, budget: int, seed: int) -> list[str]:
     """The Hydra overrides of a session of the Optuna study ``study_name`` stored in ``sweep_dir`` (none yet, or
     resumed): trials a killed session left RUNNING marked failed, then the rest of the budget
@@ -359,6 +381,9 @@ def session_overrides(sweep_dir: Path, study_name: str, budget: int, seed: int) 
             study = load_study(sweep_dir, study_name)
         except KeyError:  # a storage without this study
             study = None
+        except Exception as exc:  # SQLAlchemy/Optuna errors of a file that is not a readable study database
+            raise StorageError(f"{Path(sweep_dir) / STORAGE_FILE}: not a readable Optuna study database "
+                               f"({type(exc).__name__}); nothing was changed; move it away to start afresh") from None
         if study is not None:
             killed = close_killed_trials(study)
             done = trials_done(study)
