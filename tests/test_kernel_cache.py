@@ -36,13 +36,17 @@ pytestmark = pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's
 _SCRIPT = textwrap.dedent("""
     import json, sys
     from ddmr_cli import paper_simulation, simulate
+    from ddmr_cli.errors import ConfigError
 
     def job(spec):
         controller, scenario, realism = spec.split(":")
         overrides = [f"controller={controller}", f"scenario={scenario}", "simulation.duration=0.06"]
         if realism != "-":
             overrides.append(f"+realism={realism}")
-        r = simulate(paper_simulation(*overrides), [3, 4])
+        try:
+            r = simulate(paper_simulation(*overrides), [3, 4])
+        except ConfigError as exc:  # a controller that refuses a realism point (e.g. 250 Hz) refuses it warm too
+            return [f"refused: {exc}"]
         return [float(v).hex() for name in ("deviation_mae", "e_x_mae", "chattering", "d_est_mae")
                 for v in r.metric(name)]
 
@@ -205,6 +209,8 @@ def test_a_warm_cache_filled_by_every_controller_and_realism_point_runs_cold_num
     cold = {}
     for c in controllers:
         cold.update(_run(tmp_path / f"cold_{c}", *(j for j in jobs if j.startswith(f"{c}:"))))
+    refused = [job for job, values in cold.items() if values[0].startswith("refused")]
+    assert len(refused) < len(jobs) // 4, refused  # most of the matrix runs (some controllers refuse 250 Hz)
     _check_warm(tmp_path, jobs, cold)
 
 
