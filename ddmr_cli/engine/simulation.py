@@ -179,8 +179,7 @@ class Simulation:
         derived = (("robot", "the plant", self.robot.plant()), ("robot", "the nominal model", nominal),
                    ("terrain", "the rolling-resistance torque",
                     self.robot.rolling_resistance_torque(self.terrain.mu)),
-                   ("controller", "the law parameters", self.controller.law_parameters(nominal, control_dt)),
-                   ("simulation.initial_pose", "the initial wheel speeds", _initial_wheel_speeds(self)))
+                   ("controller", "the law parameters", self.controller.law_parameters(nominal, control_dt)))
         for key, what, value in derived:
             bad = first_non_finite(value)
             if bad is not None:
