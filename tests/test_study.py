@@ -278,14 +278,15 @@ def test_quick_study_end_to_end(tmp_path):
     trials = pd.read_csv(out / "calibration" / "study.csv")
     assert list(trials["sample"]) == [0, 1, 2, 3] and list(trials["warm_start"]) == [1, 0, 0, 0]
     assert (trials["runs"] == 4 * 2 * 10).all()
-    # what the sweeper was told: the row's capped distance, equal to the distance unless a number is 100x off
+    # what the sweeper was told: the objective, the RMS log ratio over Table 4's means (the SDs reported, not fitted)
     for row in trials.to_dict("records"):
         assert row["objective"] == pytest.approx(search.objective(row), rel=1e-12)
-        assert row["objective"] <= row["distance"] * (1 + 1e-12)
-    assert cal["distance"] == pytest.approx(trials["distance"].min(), rel=1e-12)
+        assert row["objective"] == pytest.approx(search.objective_terms(row)["means"], rel=1e-12)
+    best = trials.loc[trials["objective"].idxmin()]
+    assert cal["sample"] == best["sample"] and cal["distance"] == pytest.approx(best["distance"], rel=1e-12)
     assert [h["trial"] for h in cal["history"]] == [0, 1, 2, 3] and cal["warm_start"][0]["trial"] == 0
     lhs = pd.read_csv(out / "lhs" / "study.csv")
-    best_lhs = lhs.loc[lhs["distance"].idxmin()]
+    best_lhs = lhs.iloc[int(np.argmin([search.objective(r) for r in lhs.to_dict("records")]))]
     for name in ("nn_learning_rate", "nn_width", "roughness_scale", "dt"):
         assert trials.loc[0, name] == pytest.approx(best_lhs[name], rel=1e-12), name
     assert (out / "lhs" / "holds.csv").is_file() and not (out / "calibration" / "holds.csv").exists()

@@ -91,16 +91,19 @@ def test_a_trial_is_a_sample_at_its_reading(cfg):
             design.build(_with_reading(cfg, bad), box, faithful)
 
 
-def test_the_objective_is_the_capped_distance():
+def test_the_objective_fits_the_means_and_reports_the_sds():
     paper = claims.paper_table4()
     assert search.objective(paper) == pytest.approx(0.0, abs=1e-15)
     scaled = {k: v * math.exp(0.3) for k, v in paper.items()}
-    assert search.objective(scaled) == pytest.approx(claims.distance(scaled), rel=1e-12)
-    # one number 10^4 off counts as 100x; a missing one (a failed sample) at the cap too: never NaN
-    far = {**paper, "t4:pid:deviation_sd": paper["t4:pid:deviation_sd"] * 1e4}
-    assert search.objective(far) == pytest.approx(math.sqrt(search.LOG_CAP ** 2 / 20), rel=1e-12)
-    assert claims.distance(far) > search.objective(far)
-    missing = {**paper, "t4:pid:deviation_sd": math.nan}
+    assert search.objective(scaled) == pytest.approx(0.3, rel=1e-12)  # every mean off by e^0.3
+    # the SDs, which no reading reaches, are reported but do not steer the search (SD_WEIGHT = 0)
+    sds_off = {k: v * (100.0 if k.endswith(":deviation_sd") else 1.0) for k, v in paper.items()}
+    assert search.objective(sds_off) == pytest.approx(0.0, abs=1e-15)
+    assert search.objective_terms(sds_off)["sds"] == pytest.approx(math.log(100.0), rel=1e-12)
+    # one mean 10^4 off counts as 100x; a missing one (a failed sample) at the cap too: never NaN
+    far = {**paper, "t4:pid:e_x_mae": paper["t4:pid:e_x_mae"] * 1e4}
+    assert search.objective(far) == pytest.approx(math.sqrt(search.LOG_CAP ** 2 / 16), rel=1e-12)
+    missing = {**paper, "t4:pid:e_x_mae": math.nan}
     assert search.objective(missing) == pytest.approx(search.objective(far), rel=1e-12)
     assert search.objective({}) == pytest.approx(search.LOG_CAP, rel=1e-12)
     assert search.objective_of({"status": "failed"}) == search.LOG_CAP

@@ -169,7 +169,7 @@ def calibration(rows: "pd.DataFrame", names: Sequence[str]) -> dict:
     ok = rows[np.isfinite(rows["distance"].to_numpy(float))] if "distance" in rows else rows.iloc[:0]
     if ok.empty:
         return {"samples": len(rows), "usable": 0, "distance": None}
-    best = ok.loc[ok["distance"].idxmin()]
+    best = ok.loc[ok["objective" if "objective" in ok else "distance"].idxmin()]  # the search's own criterion
     ours = {k: float(best[k]) for k in claim_stats.paper_table4()}
     residuals = claim_stats.log_residuals(ours)
     paper = claim_stats.paper_table4()
@@ -179,10 +179,11 @@ def calibration(rows: "pd.DataFrame", names: Sequence[str]) -> dict:
         search["history"] = [{"trial": int(t), "objective": float(v), "best": float(b)} for t, v, b in
                              zip(rows["sample"], objective, np.minimum.accumulate(objective))]
         warm = ok[ok["warm_start"] == 1] if "warm_start" in ok else ok.iloc[:0]
-        search["warm_start"] = [{"trial": int(r["sample"]), "distance": float(r["distance"])}
-                                for _, r in warm.iterrows()]
+        search["warm_start"] = [{"trial": int(r["sample"]), "distance": float(r["distance"]),
+                                 "objective": float(r["objective"])} for _, r in warm.iterrows()]
     return {
         "samples": len(rows), "usable": len(ok), "distance": float(best["distance"]),
+        **({"objective": float(best["objective"])} if "objective" in best else {}),
         "distance_median": float(ok["distance"].median()),
         "sample": int(best["sample"]), **search,
         "reading": {n: _scalar(best[n]) for n in names},
