@@ -296,7 +296,7 @@ def _odometry_along(series, counts: int, rate: float, dt: float = 1e-3):
     return np.array(truth), np.array(odo), R, L
 
 
-@pytest.mark.parametrize("rate", [1000.0, 250.0])
+@pytest.mark.parametrize("rate", [1000.0, 500.0, 250.0])
 def test_a_fine_encoders_odometry_is_the_true_pose_to_within_its_quantisation(rate):
     """Over a whole run (1.5 s, the start-up transient included):
 
