@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from integrity_cases import CASES, left_behind, prepare  # noqa: E402
 
-from ddmr_cli.cli import jobdir  # noqa: E402
+from ddmr_cli.storage import jobdir  # noqa: E402
 
 
 def main() -> int:

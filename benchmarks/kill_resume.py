@@ -72,7 +72,7 @@ def intruder(sweep_dir: Path, env: dict, running: bool) -> tuple[int, str]:
 def report_state(out: Path) -> str:
     """What a (killed) report dir holds: ``empty``, ``manifest ok`` (every file there is one its manifest lists,
     with its digest) or what is wrong."""
-    from ddmr_cli.cli.jobdir import digest
+    from ddmr_cli.storage.jobdir import digest
 
     if not out.is_dir():
         return "empty"

@@ -33,10 +33,10 @@ _EXPORTS = {
     "NonlinearDisturbanceObserver": "control",
     "OpenLoop": "control", "RBFNetworkObserver": "control", "WheelController": "control",
     "ConfigError": "errors", "DDMRError": "errors",
-    "Kanayama": "control.outer_loop", 
-    "paper_config": "cli.config.presets", "paper_simulation": "cli.config.presets",
-    "paper_controller": "cli.config.presets", "paper_trajectory": "cli.config.presets",
-    "paper_robot": "cli.config.presets", "paper_scenario": "cli.config.presets", "paper_terrain": "cli.config.presets",
+    "Kanayama": "control.outer_loop",
+    "paper_config": "config.presets", "paper_simulation": "config.presets",
+    "paper_controller": "config.presets", "paper_trajectory": "config.presets",
+    "paper_robot": "config.presets", "paper_scenario": "config.presets", "paper_terrain": "config.presets",
     "SimulationResult": "engine.results", "NominalModel": "model.robot", "Robot": "model.robot",
     "DampingUncertainty": "model.scenario", "Phase": "model.scenario", "Scenario": "model.scenario",
     "Simulation": "engine.simulation", "simulate": "engine.simulation", "Terrain": "model.terrain", "TerrainZone": "model.terrain",
@@ -64,7 +64,7 @@ if TYPE_CHECKING:  # pragma: no cover
                                   RBFNetworkObserver, SuperTwisting, WheelController)
     from ddmr_cli.errors import ConfigError, DDMRError
     from ddmr_cli.control.outer_loop import Kanayama
-    from ddmr_cli.cli.config.presets import (paper_config, paper_controller, paper_robot, paper_scenario,
+    from ddmr_cli.config.presets import (paper_config, paper_controller, paper_robot, paper_scenario,
                                              paper_simulation, paper_terrain, paper_trajectory)
     from ddmr_cli.engine.results import SimulationResult
     from ddmr_cli.model.robot import NominalModel, Robot
@@ -75,8 +75,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 def compose_config(overrides=(), config_name: str = "config"):
-    """Compose the packaged Hydra config with overrides (see :mod:`ddmr_cli.cli.config`)."""
-    from ddmr_cli.cli.config import compose_config as _compose
+    """Compose the packaged Hydra config with overrides (see :mod:`ddmr_cli.config`)."""
+    from ddmr_cli.config import compose_config as _compose
 
     return _compose(list(overrides), config_name)
 
@@ -86,15 +86,15 @@ def load_sweep(path, segments: bool = False) -> "pd.DataFrame":
 
     One row per job and seed (``segments=True``: per job, seed and terrain zone / scenario phase) of every
     complete job; every key the sweep varies (``controller.switching_gain=4,8,12``) is a typed column, and the
-    rows are sorted by those values (numbers as numbers), then by seed. See :mod:`ddmr_cli.cli.sweep`."""
-    from ddmr_cli.cli.sweep import load_table
+    rows are sorted by those values (numbers as numbers), then by seed. See :mod:`ddmr_cli.storage.sweep`."""
+    from ddmr_cli.storage.sweep import load_table
 
     return load_table(path, segments=segments)
 
 
 def run_config(cfg, progress=None) -> "SimulationResult":
-    """Build the simulation a composed config describes and run its seeds (see :mod:`ddmr_cli.cli.config`)."""
-    from ddmr_cli.cli.config import run_config as _run
+    """Build the simulation a composed config describes and run its seeds (see :mod:`ddmr_cli.config`)."""
+    from ddmr_cli.config import run_config as _run
 
     return _run(cfg, progress=progress)
 

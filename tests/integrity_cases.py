@@ -52,7 +52,7 @@ CASES = (
     Case("unknown cluster key", ("+cluster.foo=1",), 2, "cluster.foo=1: unknown cluster key"),
     # _target_ swaps
     Case("robot as controller", ("controller._target_=ddmr_cli.model.robot.Robot",), 2, "must be a WheelController"),
-    Case("callback as trajectory", ("trajectory._target_=ddmr_cli.cli.sweep.SweepAggregator",), 2,
+    Case("callback as trajectory", ("trajectory._target_=ddmr_cli.cli.callbacks.SweepAggregator",), 2,
          "must be a trajectory class of ddmr_cli.model.trajectory"),
     Case("PID as observer", ("controller.ndo._target_=ddmr_cli.control.PID",), 2,
          "must be a NonlinearDisturbanceObserver"),

@@ -241,7 +241,7 @@ def c_a_job_dir_linked_outside_the_sweep_dir(tmp):
 
 @case(3, "fault")
 def c_a_run_into_a_running_sweeps_job_dir(tmp):
-    from ddmr_cli.cli import jobdir
+    from ddmr_cli.storage import jobdir
 
     with jobdir.DirLock(tmp / "s"):  # a sweep running in this dir
         (tmp / "s" / JOB).mkdir()
@@ -291,7 +291,7 @@ def c_a_run_inside_another_runs_dir(tmp):
 
 @case(4, "fault")
 def c_a_report_into_an_out_another_report_writes(tmp):
-    from ddmr_cli.cli import jobdir
+    from ddmr_cli.storage import jobdir
     from ddmr_cli.report.build import REPORT_LOCK
 
     run = single(tmp, "r")
@@ -331,7 +331,7 @@ def c_two_reports_at_once_into_one_out(tmp):
     loser = next(err for code, _, err in results if code == 1)
     assert loser.strip().startswith("ddmr: error: ") and "in use by pid" in loser
     manifest = json.loads((tmp / "rep" / ".ddmr-report.json").read_text())["digests"]
-    from ddmr_cli.cli.jobdir import digest
+    from ddmr_cli.storage.jobdir import digest
 
     assert all(digest(tmp / "rep" / name) == want for name, want in manifest.items())  # one report's files
 

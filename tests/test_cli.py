@@ -19,7 +19,7 @@ import pytest
 
 from conftest import ddmr_executable, run_ddmr
 
-from ddmr_cli.cli.io import read_series
+from ddmr_cli.storage.io import read_series
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 SMOKE_JOBS = 10

@@ -13,9 +13,9 @@ from omegaconf import MISSING, OmegaConf
 
 from paper import make_smc, make_robot, make_simulation
 from ddmr_cli import PID, SMC, ConfigError, Robot, paper_scenario, paper_terrain
-from ddmr_cli.cli.config import build_simulation, config_hash, group_options, validate_config
-from ddmr_cli.cli.config import schema
-from ddmr_cli.cli.config.build import build_scenario, build_terrain
+from ddmr_cli.config import build_simulation, config_hash, group_options, validate_config
+from ddmr_cli.config import schema
+from ddmr_cli.config.build import build_scenario, build_terrain
 
 CONTROLLERS = ["pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text"]
 SCENARIOS = ["paper_1", "paper_2"]
@@ -205,7 +205,7 @@ JOB_OVERRIDES = [
 def test_the_sweep_composer_gives_hydras_composition(overrides):
     """Pre-validation composes a sweep's defaults tree once per set of group choices and applies each job's value
     overrides to a copy (JobComposer): every kind of override gives the config a full composition gives."""
-    from ddmr_cli.cli.config import JobComposer, compose_config
+    from ddmr_cli.config import JobComposer, compose_config
 
     composer = JobComposer()
     composer.compose(["run.base_seed=1"])  # a cached skeleton from an earlier job must not leak into the next
@@ -220,7 +220,7 @@ def test_the_sweep_composer_refuses_what_hydra_refuses(bad):
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ddmr_cli.cli.config import JobComposer, compose_config
+    from ddmr_cli.config import JobComposer, compose_config
 
     with pytest.raises((HydraException, OmegaConfBaseException)) as full:
         compose_config(bad)
@@ -234,7 +234,7 @@ def _hydra_loader_and_master(hydra_overrides=("hydra.sweep.dir=/tmp/ddmr-test-sw
     from hydra.core.global_hydra import GlobalHydra
     from hydra.types import RunMode
 
-    from ddmr_cli.cli.config import _initialized
+    from ddmr_cli.config import _initialized
 
     with _initialized():
         loader = GlobalHydra.instance().config_loader()
@@ -247,7 +247,7 @@ def test_the_sweepers_loader_gives_hydras_job_config(overrides):
     """hydra/sweeper=ddmr hands Hydra's sweeper and launchers a loader that derives each job from one composition
     per set of group choices: every kind of override gives Hydra's own job config, hydra node included (the
     task overrides, override_dirname, choices)."""
-    from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+    from ddmr_cli.config.compose_once import SweepConfigLoader
 
     loader, master = _hydra_loader_and_master(["hydra.sweep.dir=/tmp/ddmr-test-sweep", "hydra.job.chdir=false"])
     ours = SweepConfigLoader(loader)
@@ -266,7 +266,7 @@ def test_the_sweepers_loader_travels_with_its_skeletons():
     composed while validating the sweep, without composing again."""
     import pickle
 
-    from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+    from ddmr_cli.config.compose_once import SweepConfigLoader
 
     loader, master = _hydra_loader_and_master()
     ours = SweepConfigLoader(loader)
@@ -289,7 +289,7 @@ def test_the_sweepers_loader_refuses_what_hydra_refuses(bad):
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
 
-    from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+    from ddmr_cli.config.compose_once import SweepConfigLoader
 
     loader, master = _hydra_loader_and_master()
     with pytest.raises((HydraException, OmegaConfBaseException)) as full:
@@ -305,9 +305,9 @@ def test_the_sweepers_loader_refuses_what_hydra_refuses(bad):
 def test_a_jobs_config_file_is_omegaconfs_yaml(overrides):
     """Jobs write their resolved config with PyYAML's C emitter (io.yaml_text): the same text OmegaConf prints,
     which reads back to the same values."""
-    from ddmr_cli.cli import io
-    from ddmr_cli.cli.config import compose_config
-    from ddmr_cli.cli.config.build import result_config
+    from ddmr_cli.storage import io
+    from ddmr_cli.config import compose_config
+    from ddmr_cli.config.build import result_config
 
     container = result_config(compose_config(overrides))
     text = io.yaml_text(container)

@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from ddmr_cli.cli.config import compose_config, iter_keys, key_doc, key_docs, schema
+from ddmr_cli.config import compose_config, iter_keys, key_doc, key_docs, schema
 from ddmr_cli.cli.main import main
 
 SCHEMAS = [c for _, c in inspect.getmembers(schema, inspect.isclass)

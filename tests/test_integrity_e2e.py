@@ -17,7 +17,7 @@ import pytest
 from conftest import ddmr_executable, run_ddmr
 from faults import fault_env
 
-from ddmr_cli.cli import jobdir
+from ddmr_cli.storage import jobdir
 
 pytestmark = pytest.mark.slow
 SMOKE = ["+experiment=smoke", "run.progress=false"]
@@ -64,7 +64,7 @@ def test_a_changed_job_file_is_not_read_as_results(tmp_path):
     proc = run_ddmr(["run", "-m", *FOUR[:2], "controller=pid,smc", "scenario=paper_1", "launcher=basic",
                      "run.plots=false", f"hydra.sweep.dir={sweep_dir}"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    from ddmr_cli.cli import sweep
+    from ddmr_cli.storage import sweep
 
     metrics = sweep_dir / "controller=pid,scenario=paper_1" / "metrics.csv"
     metrics.write_text(metrics.read_text().splitlines()[0] + "\n")  # header only: 0 of 2 seeds
@@ -234,7 +234,7 @@ def test_job_dir_names_are_safe_bounded_and_unique(tmp_path):
 @pytest.mark.parametrize("keep,seeds", [(None, [1000]), ("first:3", [1000, 1001, 1002]), ("[1199]", [1199])])
 def test_kept_series_for_any_base_seed(tmp_path, keep, seeds):
     """The README recipe ``run.base_seed=1000 run.n_runs=200`` saves series and plots (shorter runs here)."""
-    from ddmr_cli.cli.io import read_series
+    from ddmr_cli.storage.io import read_series
 
     run_dir = tmp_path / "run"
     args = ["run", "run.base_seed=1000", "run.n_runs=200", "simulation.duration=0.5", f"hydra.run.dir={run_dir}"]

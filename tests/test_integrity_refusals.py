@@ -12,7 +12,9 @@ import pytest
 
 from integrity_cases import CASES, left_behind, prepare
 
-from ddmr_cli.cli import jobdir, main
+from ddmr_cli.storage import jobdir
+
+from ddmr_cli.cli import main
 
 #: one case per kind of refusal runs in the fast suite (``pytest -m "not slow"``): a typo, a value a model part
 #: refuses, a keep-series form, a file in the way, a held lock; the whole catalogue (each case composes a config,

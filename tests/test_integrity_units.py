@@ -12,8 +12,11 @@ import types
 import pytest
 from omegaconf import OmegaConf
 
-from ddmr_cli.cli import budget, io, jobdir, sweep
-from ddmr_cli.cli.config.validate import DerivedError, kept_seeds, message
+from ddmr_cli.config import budget
+
+from ddmr_cli.storage import io, jobdir, sweep
+from ddmr_cli.config import plan as sweep_plan
+from ddmr_cli.config.validate import DerivedError, kept_seeds, message
 from ddmr_cli.errors import ConfigError
 
 
@@ -263,18 +266,18 @@ def test_a_derived_number_is_named_by_the_overrides_of_its_section():
 
 
 def test_the_plan_names_job_dirs_as_the_jobs_will_and_finds_shared_dirs():
-    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.config import compose_config
 
     cfg = compose_config([], return_hydra_config=True)
-    plan = sweep.plan_jobs(["controller=pid", "scenario.name=a/b,c"], cfg)
+    plan = sweep_plan.plan_jobs(["controller=pid", "scenario.name=a/b,c"], cfg)
     assert [job["dir"] for job in plan] == [jobdir.safe_name("controller=pid,scenario.name=a/b"),
                                             "controller=pid,scenario.name=c"]
-    assert sweep.shared_dir(plan) is None
-    same = sweep.plan_jobs(["controller=pid,smc", "hydra.sweep.subdir=x"],
+    assert sweep_plan.shared_dir(plan) is None
+    same = sweep_plan.plan_jobs(["controller=pid,smc", "hydra.sweep.subdir=x"],
                            compose_config(["hydra.sweep.subdir=x"], return_hydra_config=True))
-    a, b = sweep.shared_dir(same)
+    a, b = sweep_plan.shared_dir(same)
     assert a["dir"] == b["dir"] == "x" and a["overrides"] != b["overrides"]
-    numbered = sweep.plan_jobs(["controller=pid,smc,sta", "hydra.sweep.subdir=job${hydra.job.num}"],
+    numbered = sweep_plan.plan_jobs(["controller=pid,smc,sta", "hydra.sweep.subdir=job${hydra.job.num}"],
                                compose_config(["hydra.sweep.subdir=job${hydra.job.num}"], return_hydra_config=True))
     assert [job["dir"] for job in numbered] == ["job0", "job1", "job2"]  # each job's own number, as Hydra's
 

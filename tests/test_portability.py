@@ -15,7 +15,7 @@ import pytest
 
 from paper import make_smc, make_robot, make_simulation
 from ddmr_cli import SMC, NonlinearDisturbanceObserver, Robot, Simulation, compose_config, simulate
-from ddmr_cli.cli.config import build_simulation, validate_config
+from ddmr_cli.config import build_simulation, validate_config
 from ddmr_cli.control.pid import _pd_spectral_radius
 from ddmr_cli import paper_scenario, paper_terrain
 from ddmr_cli.model.robot import SYMMETRY_RTOL, WheelMatrix

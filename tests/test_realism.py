@@ -213,7 +213,7 @@ def test_the_controllers_run_at_the_control_period():
 
 @pytest.fixture(scope="module")
 def counts():
-    from ddmr_cli.engine.cost import operation_counts
+    from ddmr_cli.bench.cost import operation_counts
 
     return operation_counts(["pid", "smc_ndo_nno"])
 
@@ -232,7 +232,7 @@ def test_operation_counts_match_the_laws_read_by_hand(counts):
 
 
 def test_m4f_estimate_is_the_stated_cycle_model():
-    from ddmr_cli.engine.cost import M4F_CYCLES, M4F_OVERHEAD, m4f_cycles
+    from ddmr_cli.bench.cost import M4F_CYCLES, M4F_OVERHEAD, m4f_cycles
 
     ops = {"add": 10, "mul": 5, "div": 2, "cmp": 3, "transcendental": 1}
     expected = M4F_OVERHEAD * (10 * M4F_CYCLES["add"] + 5 * M4F_CYCLES["mul"] + 2 * M4F_CYCLES["div"]
@@ -242,7 +242,7 @@ def test_m4f_estimate_is_the_stated_cycle_model():
 
 def test_the_compiled_step_timing_runs_the_laws():
     from ddmr_cli import paper_controller, paper_robot
-    from ddmr_cli.engine.cost import control_steps, inputs, time_per_step
+    from ddmr_cli.bench.cost import control_steps, inputs, time_per_step
     from ddmr_cli.model.robot import NominalModel
 
     pid = paper_controller("pid")

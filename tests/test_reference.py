@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ddmr_cli.bench.reference import LAYOUTS, METRICS, exp_neg, reference_metrics, sincos
-from ddmr_cli.cli.config.presets import paper_simulation
+from ddmr_cli.config.presets import paper_simulation
 from ddmr_cli.compiled import jit_enabled
 from ddmr_cli.engine.simulation import simulate
 from ddmr_cli.errors import ConfigError

@@ -1,7 +1,7 @@
 """``ddmr report`` end to end on a small sweep built in-process: tables, figures, links, partial sweeps, single run
 dirs, forward-compatible inputs (steady-state columns, bands.npz), the CLI.
 
-The sweep is written by :func:`ddmr_cli.cli.app.execute`, the function a ``ddmr run`` job calls, so its job dirs
+The sweep is written by :func:`ddmr_cli.job.execute`, the function a ``ddmr run`` job calls, so its job dirs
 hold the same files as the console script's (no Hydra process per job: the whole sweep takes seconds). Only the
 test of the console script itself is marked slow.
 """
@@ -28,11 +28,11 @@ COMMON = ("simulation.dt=0.002", f"run.n_runs={N_RUNS}", "run.keep_series=[0]", 
 def write_job(out: Path, controller: str, scenario: str, extra=()) -> Path:
     """One job dir, written by the same function a ``ddmr run`` job calls."""
     import ddmr_cli
-    from ddmr_cli.cli.app import execute
+    from ddmr_cli.job import JobPlace, execute
 
     overrides = [f"controller={controller}", f"scenario={scenario}", *COMMON, *extra]
     job = out / f"controller={controller},scenario={scenario}"
-    execute(ddmr_cli.compose_config(overrides), job, overrides)
+    execute(ddmr_cli.compose_config(overrides), JobPlace(job, tuple(overrides)))
     (job / ".hydra").mkdir(exist_ok=True)  # as Hydra leaves it: marks a started job even without a summary
     (job / ".hydra" / "overrides.yaml").write_text("".join(f"- {o}\n" for o in overrides))
     return job
@@ -41,8 +41,8 @@ def write_job(out: Path, controller: str, scenario: str, extra=()) -> Path:
 @pytest.fixture(scope="session")
 def mini_sweep(tmp_path_factory) -> Path:
     """Every controller x both scenarios, built in-process, with the sweep plan the console script writes."""
-    from ddmr_cli.cli import io
-    from ddmr_cli.cli.sweep import PLAN
+    from ddmr_cli.storage import io
+    from ddmr_cli.storage.sweep import PLAN
 
     sweep = tmp_path_factory.mktemp("mini") / "sweep"
     plan = []
@@ -382,7 +382,7 @@ SS_METRICS = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae")
 def _record_digests(job: Path) -> None:
     """Re-record the digests of a job's files in its summary, as the engine that wrote the changed files would
     (a file changed behind the summary's back is otherwise not read: issue 12)."""
-    from ddmr_cli.cli.jobdir import digest
+    from ddmr_cli.storage.jobdir import digest
 
     summary = json.loads((job / "summary.json").read_text())
     summary["digests"] = {name: digest(job / name) for name in summary["digests"] if (job / name).is_file()}
@@ -473,10 +473,10 @@ def test_bands_are_drawn_when_present(mini_sweep, tmp_path):
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 
-    from ddmr_cli.cli.io import read_series
+    from ddmr_cli.storage.io import read_series
     from ddmr_cli.report import data as D
     from ddmr_cli.report.figures import ScenarioFigures
-    from ddmr_cli.report.plotting import StyleBook
+    from ddmr_cli.plots.common import StyleBook
 
     sweep = tmp_path / "bands"
     shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report"))
@@ -526,7 +526,7 @@ def test_bands_fall_back_when_absent_or_malformed(mini_sweep, tmp_path):
 def test_engine_bands_match_the_kept_seeds(mini_sweep):
     """bands.npz as the engine writes it, on its grid of every few steps: with 2 seeds a and b (seed 0 kept),
     mean = (a + b) / 2, p05 = lo + 0.05 (hi - lo), p95 = lo + 0.95 (hi - lo) (numpy's linear percentiles)."""
-    from ddmr_cli.cli.io import read_series
+    from ddmr_cli.storage.io import read_series
     from ddmr_cli.report import data as D
 
     job = mini_sweep / "controller=smc_ndo,scenario=paper_2"
@@ -549,7 +549,7 @@ def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path)
     """The forked path draws what the in-process path draws, and a failing figure fails the report."""
     from ddmr_cli.report import data as D
     from ddmr_cli.report import figures as F
-    from ddmr_cli.report.plotting import StyleBook
+    from ddmr_cli.plots.common import StyleBook
 
     data = D.load(mini_sweep)
     styles = StyleBook(CONTROLLERS)
@@ -569,7 +569,7 @@ def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
     reference than the line is reported under the scenario <scenario>@<trajectory>."""
     from ddmr_cli.report import data as D
     from ddmr_cli.report.figures import ScenarioFigures
-    from ddmr_cli.report.plotting import StyleBook, pyplot
+    from ddmr_cli.plots.common import StyleBook, pyplot
 
     circle = tmp_path / "circle"
     write_job(circle, "smc_ndo", "paper_1", extra=("trajectory=circle",))

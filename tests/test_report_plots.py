@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from paper import make_robot
-from ddmr_cli.report import plotting as P
+from ddmr_cli.plots import common as P
 from ddmr_cli.report import signals as S
 
 
@@ -81,7 +81,7 @@ def test_save_writes_a_png_and_closes(tmp_path):
 
 
 def test_run_plots_use_the_shared_helpers(tmp_path):
-    from ddmr_cli.report.run_plots import run_plots
+    from ddmr_cli.plots.run import run_plots
 
     n = 3000
     t = np.linspace(0, 3, n)

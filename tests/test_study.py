@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 from omegaconf import OmegaConf
 
-from ddmr_cli.cli.config import compose_config
+from ddmr_cli.config import compose_config
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.study import analysis, claims, design, search
 from ddmr_cli.study.space import Box, Parameter

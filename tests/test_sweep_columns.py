@@ -15,12 +15,13 @@ from conftest import run_ddmr
 
 
 import ddmr_cli
-from ddmr_cli.cli import io, sweep
+from ddmr_cli.storage import io, sweep
+from ddmr_cli.config import plan as sweep_plan
 
 
 def _fake_job(sweep_dir: Path, overrides: list[str], seeds=(0, 1), status="complete", value=0.0) -> str:
     """A job dir as a finished job leaves it: summary.json, metrics.csv and segments.csv."""
-    name = sweep.job_dirname(overrides, exclude_keys=[])
+    name = sweep_plan.job_dirname(overrides, exclude_keys=[])
     job = sweep_dir / name
     job.mkdir(parents=True)
     rows = [{"controller": "smc", "scenario": "paper_1", "seed": s, "status": "ok", "deviation_mae": value + s}

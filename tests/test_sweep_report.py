@@ -8,6 +8,7 @@ import importlib.util
 import pytest
 
 import ddmr_cli.report
+from ddmr_cli.cli import args, run
 from ddmr_cli.cli import main as cli
 
 
@@ -19,7 +20,7 @@ def _fake_report(calls: list):
 
 
 def test_report_shorthand_is_the_auto_key():
-    assert cli._normalise(["-m", "report=true", "report=False", "report.margin=0.1", "x.report=true"]) == [
+    assert args.normalise(["-m", "report=true", "report=False", "report.margin=0.1", "x.report=true"]) == [
         "-m", "report.auto=true", "report.auto=false", "report.margin=0.1", "x.report=true"]
 
 
@@ -50,7 +51,7 @@ def test_margin_is_passed_through_when_the_report_takes_one(tmp_path, monkeypatc
     assert calls[-1][2] is None
     assert cli.main(["report", str(tmp_path), "--no-figures"]) == 0  # tables and text only
     assert calls[-1] == (tmp_path, None, None, False)
-    launch = cli.prepare(["report.margin=0.05mm"], ["report.margin=0.05mm", "run.n_runs=1"], multirun=False)
+    launch = run.prepare(["report.margin=0.05mm"], ["report.margin=0.05mm", "run.n_runs=1"], multirun=False)
     assert launch.margin == "0.05mm" and launch.report is False
 
 

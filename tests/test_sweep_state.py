@@ -12,8 +12,14 @@ from omegaconf import OmegaConf, open_dict
 
 from conftest import run_ddmr
 
-from ddmr_cli.cli import app, io, main, sweep
-from ddmr_cli.cli.config import compose_config
+from ddmr_cli import job as app
+
+from ddmr_cli.storage import io, sweep
+from ddmr_cli.cli import callbacks
+from ddmr_cli.config import plan as sweep_plan
+
+from ddmr_cli.cli import main, run
+from ddmr_cli.config import compose_config
 
 
 @pytest.mark.parametrize("module", [sweep, main, app, io])
@@ -31,13 +37,13 @@ def test_the_callback_plans_the_jobs_from_the_config_hydra_carries(tmp_path):
     with open_dict(cfg):
         cfg.hydra.overrides.task = task
         cfg.hydra.sweep.dir = str(tmp_path / "sweep")
-    sweep.SweepAggregator().on_multirun_start(cfg)
+    callbacks.SweepAggregator().on_multirun_start(cfg)
     plan = json.loads((tmp_path / "sweep" / sweep.PLAN).read_text())["jobs"]
     # smoke's sweeper params give the scenarios, the command line the controllers (overriding smoke's five)
     assert [job["dir"] for job in plan] == [f"controller={c},run.n_runs=3,scenario={s}"
                                             for c in ("pid", "smc") for s in ("paper_1", "paper_2")]
     assert all("hydra.sweep.dir" not in " ".join(job["overrides"]) for job in plan)
-    assert plan == sweep.plan_jobs(task, cfg.hydra)
+    assert plan == sweep_plan.plan_jobs(task, cfg.hydra)
 
 
 def test_read_state_with_a_plan_covers_exactly_the_planned_jobs(tmp_path):
@@ -57,14 +63,14 @@ def test_the_output_dir_is_resolved_once_and_pinned_for_hydra(tmp_path, monkeypa
 
     monkeypatch.chdir(tmp_path)
     args = ["-m", "experiment_name=\"it's, odd\"", "run.n_runs=1"]
-    launch = main.prepare(args, args[1:], multirun=True)
+    launch = run.prepare(args, args[1:], multirun=True)
     assert launch.out_dir.parent == tmp_path.joinpath("outputs", "it's, odd").relative_to(tmp_path)
     pinned = launch.argv[-1]
     assert pinned.startswith("hydra.sweep.dir=") and launch.argv[:-1] == tuple(args)
     (parsed,) = OverridesParser.create().parse_overrides([pinned])
     assert not parsed.is_sweep_override() and parsed.value() == str(launch.out_dir)
     assert [job["overrides"] for job in launch.plan] == [args[1:]] and list(tmp_path.iterdir()) == []
-    again = main.prepare([*args, "hydra.sweep.dir=elsewhere"], [*args[1:], "hydra.sweep.dir=elsewhere"], True)
+    again = run.prepare([*args, "hydra.sweep.dir=elsewhere"], [*args[1:], "hydra.sweep.dir=elsewhere"], True)
     assert again.argv[-1] == "hydra.sweep.dir=elsewhere" and again.argv.count("hydra.sweep.dir=elsewhere") == 1
 
 

@@ -1,4 +1,4 @@
-"""Gain tuning through Hydra's Optuna sweeper (ddmr_cli/cli/tuning.py, docs/model.md §9): the search spaces name
+"""Gain tuning through Hydra's Optuna sweeper (ddmr_cli/study/tuning.py, docs/model.md §9): the search spaces name
 real keys, bad input is one line and exit 2, the objective's penalty rule, a study end to end (joblib and basic
 launchers give the same trials), resumption continuing the trial count, the report at tuned gains."""
 
@@ -18,9 +18,9 @@ from conftest import run_ddmr
 
 pytest.importorskip("optuna", reason="the tune extra is not installed (pip install -e '.[tune]')")
 
-from ddmr_cli.cli.config import compose_config, group_options, key_doc, seeds_of  # noqa: E402
+from ddmr_cli.config import compose_config, group_options, key_doc, seeds_of  # noqa: E402
 from ddmr_cli.cli.main import main  # noqa: E402
-from ddmr_cli.cli import tuning as TU  # noqa: E402
+from ddmr_cli.study import tuning as TU  # noqa: E402
 from ddmr_cli.report.tuning import pareto_front  # noqa: E402
 
 #: a tiny study: 2 seeds, 0.4 s at a 2 ms step (every controller's loop is stable there), 4 trials
@@ -84,7 +84,7 @@ def _study_cfg(*extra):
 
 
 def test_a_feasible_trial_scores_the_mean_deviation_over_scenarios_and_runs():
-    from ddmr_cli.cli.config import validate_config
+    from ddmr_cli.config import validate_config
     from ddmr_cli.engine.simulation import simulate
 
     cfg = _study_cfg("tuning.saturation_limit=0.9")

@@ -11,7 +11,7 @@ Prints the machine line, then
    one-seed 0.2 s runs (the per-job overhead);
 4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only);
 5. the cost of a control step per controller: ns of its laws alone, operation counts and a Cortex-M4F estimate
-   (:mod:`ddmr_cli.engine.cost`; printed after section 1 when ``--skip-e2e``).
+   (:mod:`ddmr_cli.bench.cost`; printed after section 1 when ``--skip-e2e``).
 ``--quick`` shrinks every figure (CI runs it so this script cannot rot).
 """
 
@@ -50,7 +50,7 @@ def machine_line() -> str:
 
 
 def _simulation(controller: str, duration: float):
-    from ddmr_cli.cli.config.presets import paper_simulation
+    from ddmr_cli.config.presets import paper_simulation
 
     return paper_simulation(f"controller={controller}", f"simulation.duration={duration}")
 
@@ -231,8 +231,8 @@ def cost_lines(rows: list[dict]) -> list[str]:
 
 
 def control_step_cost(quick: bool) -> None:
-    """Section 5: the cost of one control step of each controller's laws (:mod:`ddmr_cli.engine.cost`)."""
-    from ddmr_cli.engine.cost import assumptions, cost_table
+    """Section 5: the cost of one control step of each controller's laws (:mod:`ddmr_cli.bench.cost`)."""
+    from ddmr_cli.bench.cost import assumptions, cost_table
 
     print("\n5. cost of a control step (the controller's command + update laws alone, compiled, one run, warm)")
     rows = cost_table(list(CONTROLLERS), repeats=5 if quick else 30, n=200 if quick else 2000)

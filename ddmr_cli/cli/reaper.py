@@ -9,7 +9,7 @@ trackers (multiprocessing's and loky's) carry the entry too but are left alone: 
 workers; they end by themselves when it does, after unlinking what it leaked, and a process that runs several
 sweeps (``ddmr sensitivity``) keeps using them. Killing them printed KeyError tracebacks from the relaunched
 tracker at every later stage.
-Inside a job, :func:`ddmr_cli.cli.app._exit_with_parent` does the same for busy workers where /proc is missing.
+Inside a job, :func:`ddmr_cli.job._exit_with_parent` does the same for busy workers where /proc is missing.
 """
 
 from __future__ import annotations

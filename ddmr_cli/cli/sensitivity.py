@@ -34,7 +34,7 @@ def top_parameters(morris_csv: Path, k: int) -> list[str]:
 
 def stage_extra(stage: str, out: Path, overrides: list[str]) -> list[str]:
     """What a stage takes from the earlier ones (none when they did not run)."""
-    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.config import compose_config
 
     if stage == "sobol" and (out / "morris" / "morris.csv").is_file():
         cfg = compose_config(["+experiment=sensitivity_sobol", *overrides])
@@ -42,9 +42,9 @@ def stage_extra(stage: str, out: Path, overrides: list[str]) -> list[str]:
         return [f"study.sobol.parameters=[{','.join(names)}]"]
     lhs = out / "lhs" / "study.csv"
     if stage == "calibration" and lhs.is_file():  # the search starts from the uniform sample's best readings
-        from ddmr_cli.cli.main import _override_value
+        from ddmr_cli.cli.args import override_value
 
-        return [f"study.calibration.warm_start_from={_override_value(lhs.resolve())}"]
+        return [f"study.calibration.warm_start_from={override_value(lhs.resolve())}"]
     path = out / "calibration" / "calibration.json"
     if stage == "points" and path.is_file() and json.loads(path.read_text()).get("distance") is not None:
         return ["study.calibrated=true"]
@@ -52,7 +52,8 @@ def stage_extra(stage: str, out: Path, overrides: list[str]) -> list[str]:
 
 
 def main(argv: Sequence[str]) -> int:
-    from ddmr_cli.cli.main import _fail, cmd_run
+    from ddmr_cli.cli.run import cmd_run
+    from ddmr_cli.cli.usage import fail
 
     parser = argparse.ArgumentParser(
         prog="ddmr sensitivity", description="Sensitivity of the paper's claims to its unspecified constants and "
@@ -68,7 +69,7 @@ def main(argv: Sequence[str]) -> int:
     stages = [s for s in args.stages.split(",") if s]
     bad = [s for s in stages if s not in STAGES]
     if bad:
-        return _fail(f"--stages={args.stages}: unknown stage {bad[0]!r}; available: {', '.join(STAGES)}")
+        return fail(f"--stages={args.stages}: unknown stage {bad[0]!r}; available: {', '.join(STAGES)}")
     out = Path(args.out or f"outputs/sensitivity/{time.strftime('%Y-%m-%d_%H-%M-%S')}")
     summary_path = out / SUMMARY
     record = json.loads(summary_path.read_text()) if summary_path.is_file() else {"stages": {}}
@@ -97,7 +98,7 @@ def main(argv: Sequence[str]) -> int:
 
 def _counts(stage_dir: Path) -> dict:
     """Samples and simulated runs of a stage dir (from its jobs' summaries)."""
-    from ddmr_cli.cli.sweep import read_state
+    from ddmr_cli.storage.sweep import read_state
 
     state = read_state(stage_dir)
     return {"jobs": len(state.complete), "samples": sum(int(s.get("samples", 0)) for _, s in state.complete),

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddmr_cli.cli import io, jobdir
+from ddmr_cli.storage import io, jobdir
 from ddmr_cli.engine.metrics import METRICS
 from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
@@ -17,7 +17,7 @@ from ddmr_cli.report import realism
 from ddmr_cli.report import verdicts as V
 from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
 from ddmr_cli.report.figures import common_seed, make_figures
-from ddmr_cli.report.plotting import OKABE_ITO, StyleBook, label_of
+from ddmr_cli.plots.common import OKABE_ITO, StyleBook, label_of
 from ddmr_cli.report.stats import Margin
 
 #: Settings shown in the configuration section (dotted config keys).
@@ -436,7 +436,7 @@ def staged(out: Path, write) -> Path:
     The report replaces only files an earlier report wrote there (listed with their digests in
     :data:`MANIFEST`; one changed since is kept as ``<name>.changed``); a file of the new report's name that no
     report wrote is refused (nothing changes). The new files' digests are recorded before they are moved in,
-    ``report.md`` last. Raises :class:`ddmr_cli.cli.jobdir.FaultError` on a fault or refusal."""
+    ``report.md`` last. Raises :class:`ddmr_cli.storage.jobdir.FaultError` on a fault or refusal."""
     out = Path(out)
     try:
         with jobdir.DirLock(out, name=REPORT_LOCK):

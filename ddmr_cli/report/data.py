@@ -13,9 +13,9 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ddmr_cli.cli import io
+from ddmr_cli.storage import io
 from ddmr_cli.errors import DDMRError
-from ddmr_cli.report.plotting import label_of
+from ddmr_cli.plots.common import label_of
 
 if TYPE_CHECKING:
     import numpy as np
@@ -281,7 +281,7 @@ def load(path) -> ReportData:
     """Read a sweep dir or a single run dir; raises DDMRError when there is nothing to report."""
     import pandas as pd
 
-    from ddmr_cli.cli.sweep import PLAN, load_sweep
+    from ddmr_cli.storage.sweep import PLAN, load_sweep
 
     path = Path(path).expanduser().resolve()
     if not path.is_dir():

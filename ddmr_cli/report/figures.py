@@ -4,7 +4,7 @@ scenario, from the jobs' kept time series (and their across-seed bands when the 
 Each figure uses one seed: the first kept seed common to every job of the scenario, so every controller faces
 the same terrain. With bands, a time-series figure shows per controller the mean over all seeds (line), the
 5-95 % band (shaded) and that seed (thin line). Long lines are thinned to at most
-:data:`~ddmr_cli.report.plotting.MAX_POINTS` points keeping each bin's minimum and maximum; zooms are drawn at full
+:data:`~ddmr_cli.plots.common.MAX_POINTS` points keeping each bin's minimum and maximum; zooms are drawn at full
 resolution. Lines that would overlap are drawn widest-spread first, or split into one panel per controller.
 
 Every caption says in one sentence what the paper reports for the figure and what we see, the latter computed
@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ddmr_cli.cli import io
-from ddmr_cli.cli.jobdir import safe_name  # a scenario name as one path component (issue 26)
+from ddmr_cli.storage import io
+from ddmr_cli.storage.jobdir import safe_name  # a scenario name as one path component (issue 26)
 from ddmr_cli.report import signals as S
 from ddmr_cli.report.data import Job, ReportData, flatten, paper_numbers
 from ddmr_cli.report.tables import fmt
-from ddmr_cli.report.plotting import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, pyplot, save,
+from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, pyplot, save,
                                       thin)
 
 ZOOM_WIDTH = 0.3  # s

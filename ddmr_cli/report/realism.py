@@ -195,7 +195,7 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ddmr_cli.report.plotting import label_of
+    from ddmr_cli.plots.common import label_of
 
     jobs = [(j, classify(j)) for j in data.jobs if j.scenario == scenario]
     effects = [e for e in EFFECTS if any(p.effect == e for _, p in jobs)]
@@ -247,7 +247,7 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
     fig.suptitle(f"{scenario}: steady state against each effect (mean, 5-95 % band over seeds)", fontsize=10)
     fig.tight_layout()
     out_dir.mkdir(parents=True, exist_ok=True)
-    from ddmr_cli.cli.jobdir import safe_name
+    from ddmr_cli.storage.jobdir import safe_name
 
     path = out_dir / f"realism_{safe_name(scenario)}.png"  # one path component, whatever the name (issue 26)
     fig.savefig(path, dpi=110)
@@ -256,9 +256,9 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
 
 
 def cost_rows(controllers: list[str]) -> list[dict]:
-    """The cost-per-step table for the packaged controllers among ``controllers`` (:mod:`ddmr_cli.engine.cost`)."""
-    from ddmr_cli.cli.config import group_options
-    from ddmr_cli.engine.cost import cost_table
+    """The cost-per-step table for the packaged controllers among ``controllers`` (:mod:`ddmr_cli.bench.cost`)."""
+    from ddmr_cli.config import group_options
+    from ddmr_cli.bench.cost import cost_table
 
     names = [c for c in controllers if c in group_options("controller")]
     return cost_table(names, repeats=15, n=1000) if names else []
@@ -268,8 +268,8 @@ def section(report) -> None:
     """Add the realism section to ``report`` (a :class:`ddmr_cli.report.build.Report`)."""
     import pandas as pd
 
-    from ddmr_cli.engine.cost import assumptions
-    from ddmr_cli.report.plotting import label_of
+    from ddmr_cli.bench.cost import assumptions
+    from ddmr_cli.plots.common import label_of
 
     d = report.data
     if not present(d):

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ddmr_cli.cli import io
-from ddmr_cli.report.plotting import OKABE_ITO, pyplot, save
+from ddmr_cli.storage import io
+from ddmr_cli.plots.common import OKABE_ITO, pyplot, save
 from ddmr_cli.report.tables import md_table
 from ddmr_cli.study import analysis
 from ddmr_cli.study.claims import CLAIM_IDS, claims

@@ -2,7 +2,7 @@
 
 For a study dir (``outputs/tune/<objective>/<controller>``) or a dir holding several (``outputs/tune``), the
 report re-runs every single-objective study's controller at its paper gains and at its best trial's gains on the
-held-out seeds (:func:`ddmr_cli.cli.tuning.run_held_out`), builds the standard report (Table 4, verdicts, figures)
+held-out seeds (:func:`ddmr_cli.study.tuning.run_held_out`), builds the standard report (Table 4, verdicts, figures)
 of each set, and writes beside them ``report.md`` with the study budgets and wall times, a "paper gains vs tuned
 gains" table, the held-out Table 4 of both side by side, the paper's ranking and claims at both, the
 optimisation-history figure and the deviation-chattering (Pareto) figure with the paper's gains marked.
@@ -13,12 +13,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ddmr_cli.cli import io
-from ddmr_cli.cli import tuning as TU
+from ddmr_cli.storage import io
+from ddmr_cli.study import tuning as TU
 from ddmr_cli.errors import DDMRError
 from ddmr_cli.report import verdicts as V
 from ddmr_cli.report.data import controller_rank, load
-from ddmr_cli.report.plotting import StyleBook, label_of, pyplot, save
+from ddmr_cli.plots.common import StyleBook, label_of, pyplot, save
 from ddmr_cli.report.stats import Margin
 from ddmr_cli.report.tables import fmt, md_table
 

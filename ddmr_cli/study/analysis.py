@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ddmr_cli.cli import io
+from ddmr_cli.storage import io
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study.design import Design, problem
 

@@ -2,7 +2,7 @@
 ``calibration``): the reading of the box nearest the paper's Table 4.
 
 ``ddmr run -m +experiment=sensitivity_calibration`` runs Hydra's Optuna sweeper with a seeded TPE sampler, as the
-gain tuning does (docs/model.md §9; :mod:`ddmr_cli.cli.tuning`): the sweeper asks ``study.calibration.batch``
+gain tuning does (docs/model.md §9; :mod:`ddmr_cli.study.tuning`): the sweeper asks ``study.calibration.batch``
 trials at a time, :func:`suggest_reading` (the sweeper's ``custom_search_space``) draws each trial's reading from
 the box (``+study.reading.<parameter>=value``: log axes log-uniform, choices categorical, ``study.vary``
 respected), the configured launcher runs each trial as one study job (:func:`ddmr_cli.study.task.execute_study`:
@@ -11,7 +11,7 @@ returns :func:`objective` of its row to the sweeper. Nothing here loops over tri
 
 Before Hydra starts, :func:`prepare_search` checks the settings (one-line ConfigError, exit 2), refuses a sweep
 dir holding a search of another config, and plans the session (the rest of the budget, the sampler seeded
-``seed + trials done``: :func:`ddmr_cli.cli.tuning.session_overrides`). When a search starts from scratch,
+``seed + trials done``: :func:`ddmr_cli.study.tuning.session_overrides`). When a search starts from scratch,
 :func:`warm_start` enqueues the ``study.calibration.warm_start`` best readings of a Latin-hypercube stage's
 ``study.csv`` (``study.calibration.warm_start_from``; ``ddmr sensitivity`` passes its ``lhs`` stage's), so the
 search begins where the uniform sample ended and the two are compared on the same seeds.
@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from ddmr_cli.cli import io
+from ddmr_cli.storage import io
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study.space import Box
 
@@ -135,7 +135,7 @@ def objective_of(summary: Mapping[str, Any]) -> float:
 def search_hash(cfg: DictConfig) -> str:
     """What a trial computes: the result config without the hydra node, the search budget, the reading and the
     other stages' settings."""
-    from ddmr_cli.cli.config.build import result_config
+    from ddmr_cli.config.build import result_config
 
     container = result_config(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
     study = container.get("study") or {}
@@ -169,10 +169,10 @@ def check_search(cfg: DictConfig) -> None:
 
 def prepare_search(cfg: DictConfig) -> list[str]:
     """Check a search before Hydra starts and plan this session: the overrides running the rest of the budget
-    with the sampler seeded ``study.calibration.seed + trials done`` (:func:`ddmr_cli.cli.tuning.session_overrides`).
+    with the sampler seeded ``study.calibration.seed + trials done`` (:func:`ddmr_cli.study.tuning.session_overrides`).
     Raises ConfigError on a bad setting, or when the sweep dir holds a search of another config."""
-    from ddmr_cli.cli.config import validate_config
-    from ddmr_cli.cli.tuning import session_overrides
+    from ddmr_cli.config import validate_config
+    from ddmr_cli.study.tuning import session_overrides
     from ddmr_cli.errors import ConfigError
     from ddmr_cli.study.task import study_setup
 
@@ -257,7 +257,7 @@ def trial_rows(sweep_dir: Path, rows: "pd.DataFrame", complete) -> "pd.DataFrame
     sweeper was told, ``warm_start`` = 1 for an enqueued trial; in trial order. Job dirs of no trial are left out."""
     import pandas as pd
 
-    from ddmr_cli.cli.tuning import load_study, trial_record
+    from ddmr_cli.study.tuning import load_study, trial_record
 
     info = io.read_json(Path(sweep_dir) / SEARCH_FILE)
     if info is None or rows.empty:
@@ -286,8 +286,8 @@ def trial_rows(sweep_dir: Path, rows: "pd.DataFrame", complete) -> "pd.DataFrame
 def finish(sweep_dir: Path) -> int:
     """The exit status of a search session: 0 when the storage holds the whole budget of complete trials, every
     trial job is complete and the study table is written."""
-    from ddmr_cli.cli.sweep import read_state
-    from ddmr_cli.cli.tuning import STORAGE_FILE, load_study, trials_done
+    from ddmr_cli.storage.sweep import read_state
+    from ddmr_cli.study.tuning import STORAGE_FILE, load_study, trials_done
     from ddmr_cli.study.task import STUDY_CSV
 
     sweep_dir = Path(sweep_dir)

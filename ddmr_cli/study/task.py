@@ -6,7 +6,7 @@ every controller of ``study.configs.controller`` in every scenario of ``study.co
 seeds (``run.n_runs`` from ``run.base_seed``, one batch per controller and scenario), with the sample's values set
 on the config (:meth:`~ddmr_cli.study.space.Box.apply`). It writes ``study_rows.csv`` (one row per sample: its
 values, claim statistics, Table 4 numbers, distance to the paper) and ``summary.json``; it goes through
-:func:`ddmr_cli.cli.app.run_job`, so a job with a complete summary of the same config is skipped (resume), and a
+:func:`ddmr_cli.job.run_job`, so a job with a complete summary of the same config is skipped (resume), and a
 failing job is recorded. A sample whose values a model part refuses, or whose run diverges, is a row with status
 ``failed`` or NaN statistics, not a failed job.
 
@@ -25,8 +25,8 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from ddmr_cli.cli import io, jobdir
-from ddmr_cli.cli.sweep import SweepAggregator, _shutdown_joblib_workers, read_state
+from ddmr_cli.storage import io, jobdir
+from ddmr_cli.storage.sweep import read_state
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study import search
 from ddmr_cli.study.design import Design, build, chunk_of
@@ -71,7 +71,7 @@ def simulate_sample(box: Box, configs: dict[tuple[str, str], DictConfig], sample
                     threads: int) -> tuple[dict, int, int]:
     """Every controller and scenario at one reading: per (controller, scenario) the per-seed metrics
     (:data:`~ddmr_cli.study.claims.METRICS`), and the counts of runs and diverged runs."""
-    from ddmr_cli.cli.config import validate_config
+    from ddmr_cli.config import validate_config
     from ddmr_cli.engine.simulation import simulate
 
     runs, n, diverged = {}, 0, 0
@@ -105,20 +105,19 @@ def _nanmean(values) -> float:
     return float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else float("nan")
 
 
-def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None,
-                  sim=None) -> dict:
-    """The study job (the ``task`` of :func:`ddmr_cli.cli.app.run_job`): its share of the stage's samples."""
+def execute_study(cfg: DictConfig, place, digest: str | None = None, sim=None) -> dict:
+    """The study job (the ``task`` of :func:`ddmr_cli.job.run_job`): its share of the stage's samples."""
     import pandas as pd
 
-    from ddmr_cli.cli.app import _in_sweep
-    from ddmr_cli.cli.config import config_hash, seeds_of
+    from ddmr_cli.config import config_hash, seeds_of
     from ddmr_cli.errors import DDMRError
 
     started = time.perf_counter()
+    out, overrides = place.out, list(place.overrides)
     box, configs, _, design = study_setup(cfg, out.parent)
     indices = chunk_of(len(design.samples), int(cfg.study.chunk), int(cfg.study.chunks))
     seeds = seeds_of(cfg)
-    threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
+    threads = place.threads(cfg)
     scenarios = list(dict.fromkeys(s for _, s in configs))
     rows, n_runs, n_diverged, failed = [], 0, 0, 0
     for count, i in enumerate(indices):
@@ -146,7 +145,7 @@ def execute_study(cfg: DictConfig, out: Path, overrides: list[str] | None = None
         "seeds": [seeds[0], seeds[-1]], "statistics": {"runs": n_runs, "diverged": n_diverged},
         "wall_time": wall, **extra,
     }
-    # staged and moved in with the summary (and every file's digest) last, as any job (cli/jobdir.py)
+    # staged and moved in with the summary (and every file's digest) last, as any job (storage/jobdir.py)
     with jobdir.Stage(out) as stage:
         io.write_csv(stage.path / STUDY_ROWS, pd.DataFrame(rows))
         summary = stage.commit(summary)
@@ -167,36 +166,39 @@ def collect(sweep_dir: Path) -> "pd.DataFrame":
     return pd.concat(frames, ignore_index=True).sort_values("sample", kind="mergesort").reset_index(drop=True)
 
 
-class StudyAggregator(SweepAggregator):
-    """Hydra callback of the study presets: the sweep plan at the start (the calibration search: its record and
-    warm start, :func:`ddmr_cli.study.search.start_session`); ``study.csv`` and the stage's analysis at the end."""
+def start_stage(config: DictConfig) -> None:
+    """A study stage's multirun starts (:class:`ddmr_cli.cli.callbacks.StudyAggregator`): the sweep plan (the
+    calibration search: its record and warm start instead, :func:`ddmr_cli.study.search.start_session`; the
+    Optuna sweeper plans nothing ahead)."""
+    from ddmr_cli.config.plan import plan_jobs
+    from ddmr_cli.storage.sweep import write_plan
 
-    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        if search.is_search(config):  # the Optuna sweeper plans nothing ahead: the search's own record instead
-            search.start_session(config)
-        else:
-            super().on_multirun_start(config, **kwargs)
+    if search.is_search(config):
+        search.start_session(config)
+    else:
+        write_plan(Path(config.hydra.sweep.dir), plan_jobs(config.hydra.overrides.task, config))
 
-    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        from ddmr_cli.study.analysis import analyse
 
-        sweep_dir = Path(config.hydra.sweep.dir)
-        state = read_state(sweep_dir)
-        rows = collect(sweep_dir)
-        if search.is_search(config):  # one row per complete trial, numbered as Optuna's trials
-            search.end_session(sweep_dir)
-            rows = search.trial_rows(sweep_dir, rows, state.complete)
-        io.write_csv(sweep_dir / STUDY_CSV, rows)
-        runs = int(sum(s.get("statistics", {}).get("runs", 0) or 0 for _, s in state.complete))
-        wall = sum(float(s.get("wall_time") or 0) for _, s in state.complete)
-        print(f"\nddmr study {config.study.stage}: {len(state.complete)} jobs complete, {len(state.failed)} failed, "
-              f"{len(state.missing)} missing; {len(rows)} samples, {runs} simulated runs, {wall:.1f} s in jobs "
-              f"-> {sweep_dir}")
-        if not rows.empty and not state.missing and not state.failed:
-            for line in analyse(sweep_dir, config, rows):
-                print("  " + line)
-        _shutdown_joblib_workers()
+def end_stage(config: DictConfig) -> None:
+    """A study stage's multirun ends: ``study.csv`` and the stage's analysis."""
+    from ddmr_cli.study.analysis import analyse
+
+    sweep_dir = Path(config.hydra.sweep.dir)
+    state = read_state(sweep_dir)
+    rows = collect(sweep_dir)
+    if search.is_search(config):  # one row per complete trial, numbered as Optuna's trials
+        search.end_session(sweep_dir)
+        rows = search.trial_rows(sweep_dir, rows, state.complete)
+    io.write_csv(sweep_dir / STUDY_CSV, rows)
+    runs = int(sum(s.get("statistics", {}).get("runs", 0) or 0 for _, s in state.complete))
+    wall = sum(float(s.get("wall_time") or 0) for _, s in state.complete)
+    print(f"\nddmr study {config.study.stage}: {len(state.complete)} jobs complete, {len(state.failed)} failed, "
+          f"{len(state.missing)} missing; {len(rows)} samples, {runs} simulated runs, {wall:.1f} s in jobs "
+          f"-> {sweep_dir}")
+    if not rows.empty and not state.missing and not state.failed:
+        for line in analyse(sweep_dir, config, rows):
+            print("  " + line)
 
 
 __all__ = ["execute_study", "study_setup", "study_configs", "simulate_sample", "sample_row", "collect",
-           "StudyAggregator", "STUDY_ROWS", "STUDY_CSV"]
+           "start_stage", "end_stage", "STUDY_ROWS", "STUDY_CSV"]

@@ -3,7 +3,7 @@ of group choices instead of two full compositions each (one to validate the job,
 
 The sweep itself (the cartesian product, batches, ``hydra.sweeper.params``) and every launcher (joblib,
 submitit, Ray) are Hydra's; the only change is the config loader handed to them,
-:class:`ddmr_cli.cli.config.compose_once.SweepConfigLoader`, which gives the same configs. It lives in
+:class:`ddmr_cli.config.compose_once.SweepConfigLoader`, which gives the same configs. It lives in
 ``hydra_plugins`` because Hydra instantiates sweepers only from there; ``ddmr run`` registers it explicitly
 (``Plugins.register``), since Hydra's plugin scan does not see packages of an editable install.
 """
@@ -30,7 +30,7 @@ ConfigStore.instance().store(group="hydra/sweeper", name="ddmr", node=DdmrSweepe
 
 
 class DdmrSweeper(Sweeper):
-    """Hydra's :class:`BasicSweeper` with :class:`~ddmr_cli.cli.config.compose_once.SweepConfigLoader`.
+    """Hydra's :class:`BasicSweeper` with :class:`~ddmr_cli.config.compose_once.SweepConfigLoader`.
 
     It wraps a basic sweeper rather than subclassing it: Hydra's plugin scan re-executes the module of its core
     plugins, so the class ``BasicSweeper`` names inside its own methods is not the one a subclass was made from."""
@@ -42,7 +42,7 @@ class DdmrSweeper(Sweeper):
         self.basic = BasicSweeper(max_batch_size=max_batch_size, params=params)
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
-        from ddmr_cli.cli.config.compose_once import SweepConfigLoader
+        from ddmr_cli.config.compose_once import SweepConfigLoader
 
         context = HydraContext(config_loader=SweepConfigLoader(hydra_context.config_loader),
                                callbacks=hydra_context.callbacks)

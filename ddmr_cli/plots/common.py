@@ -19,7 +19,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ddmr_cli.cli.io import atomic_write
+from ddmr_cli.storage.io import atomic_write
 
 #: Okabe & Ito (2008), "Color universal design": eight colours told apart with every common colour-vision deficiency.
 OKABE_ITO = {

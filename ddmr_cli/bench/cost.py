@@ -173,7 +173,7 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
 def operation_counts(names: list[str]) -> dict[str, dict[str, float]]:
     """:func:`count_operations` for the packaged controllers ``names`` (conf/controller), in a subprocess with
     ``NUMBA_DISABLE_JIT=1``; ``{name: counts}``."""
-    code = ("import json, sys; from ddmr_cli.engine.cost import packaged_counts; "
+    code = ("import json, sys; from ddmr_cli.bench.cost import packaged_counts; "
             "print(json.dumps(packaged_counts(sys.argv[1:])))")
     out = subprocess.run([sys.executable, "-c", code, *names], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
                          capture_output=True, text=True, check=True).stdout
@@ -184,7 +184,7 @@ def operation_counts(names: list[str]) -> dict[str, dict[str, float]]:
 
 def packaged_counts(names: list[str]) -> dict[str, dict[str, float]]:
     """:func:`count_operations` of each packaged controller at the packaged ``simulation.dt``."""
-    from ddmr_cli.cli.config.presets import paper_controller, paper_robot, paper_config
+    from ddmr_cli.config.presets import paper_controller, paper_robot, paper_config
     from ddmr_cli.model.robot import NominalModel
 
     nominal, dt = NominalModel.from_robot(paper_robot()), float(paper_config().simulation.dt)
@@ -205,7 +205,7 @@ def flops(counts: dict[str, float]) -> float:
 def cost_table(names: list[str], repeats: int = 30, n: int = 2000) -> list[dict]:
     """One row per packaged controller: ns per step (min, median), operation counts, M4F cycles and the fraction
     of a 1 kHz budget at 168 MHz."""
-    from ddmr_cli.cli.config.presets import paper_controller, paper_robot, paper_config
+    from ddmr_cli.config.presets import paper_controller, paper_robot, paper_config
     from ddmr_cli.model.robot import NominalModel
 
     nominal, dt = NominalModel.from_robot(paper_robot()), float(paper_config().simulation.dt)

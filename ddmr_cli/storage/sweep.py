@@ -1,10 +1,10 @@
 """Sweeps: the plan of jobs, the state of a sweep dir, and the sweep-level tables written when a multirun ends.
 
-The plan (``sweep_plan.json``: every job's dir and overrides) is computed from what Hydra carries, the sweep's
-task overrides and ``hydra.sweeper.params``, by the same function the CLI uses to validate every job before
-launching; the aggregation is a Hydra callback (``hydra.callbacks.sweep_table``) that writes the plan when the
-multirun starts and the tables when it ends, in the launching process, whatever the launcher (joblib,
+The plan (``sweep_plan.json``: every job's dir and overrides) is computed by :mod:`ddmr_cli.config.plan` from what
+Hydra carries; the Hydra callback :class:`ddmr_cli.cli.callbacks.SweepAggregator` writes it when the multirun
+starts and calls :func:`aggregate` when it ends, in the launching process, whatever the launcher (joblib,
 submitit, ray). Nothing is handed over in memory: the CLI reads the outcome from the sweep dir afterwards.
+This module is storage only: no Hydra.
 
 Tables written into the sweep dir: ``sweep_jobs.csv`` (one row per job: status, runs, diverged, mean and SD
 of the headline metrics), ``sweep_metrics.csv`` (every job and seed) and ``sweep_segments.csv`` (every job,
@@ -22,10 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
-from hydra.experimental.callback import Callback
-from omegaconf import DictConfig
-
-from ddmr_cli.cli import io, jobdir
+from ddmr_cli.storage import io, jobdir
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -40,76 +37,10 @@ SWEEP_SEGMENTS_CSV = "sweep_segments.csv"
 _BASE_COLUMNS = ("job", "controller", "scenario")
 
 
-def _is_hydra_override(override: str) -> bool:
+def is_hydra_override(override: str) -> bool:
+    """True for an override of Hydra's own settings (``hydra.*``, ``hydra/...``), which is not part of a job."""
     key = override.lstrip("+~").partition("=")[0]
     return key == "hydra" or key.startswith(("hydra.", "hydra/"))
-
-
-def expand_jobs(overrides: Iterable[str], sweeper_params: dict[str, Any]) -> list[list[str]]:
-    """The job override lists Hydra's basic sweeper will launch (sweeper params first, then the command line);
-    ``hydra.*`` overrides are not part of a job's overrides (Hydra keeps them apart) and are left out."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    params = [f"{k}={v}" for k, v in sweeper_params.items()] + [o for o in overrides if not _is_hydra_override(o)]
-    parsed = OverridesParser.create().parse_overrides(params)
-    return BasicSweeper.split_arguments(parsed, None)[0]
-
-
-def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_sep: str = "=",
-                parse: Callable[[list[str]], list] | None = None) -> str:
-    """Hydra's ``hydra.job.override_dirname`` of a job's overrides (made safe by the ``ddmr.jobdir`` resolver of
-    the default ``hydra.sweep.subdir``, :func:`ddmr_cli.cli.jobdir.safe_name`); ``parse``: Hydra's override
-    parser, or one that remembers the lines it parsed (:class:`~ddmr_cli.cli.config.compose_once.OverrideParser`)."""
-    from hydra._internal.config_loader_impl import get_overrides_dirname
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    parsed = (parse or OverridesParser.create().parse_overrides)(list(job_overrides))
-    return get_overrides_dirname(parsed, exclude_keys=list(exclude_keys), item_sep=item_sep, kv_sep=kv_sep)
-
-
-def _subdir(scratch: DictConfig, dirname: str, num: int) -> str:
-    """A job's ``hydra.sweep.subdir`` as Hydra will resolve it in the job (override_dirname and num set), on
-    ``scratch``, a plain copy of the sweep's config whose ``hydra.job`` this sets."""
-    from omegaconf import OmegaConf
-
-    from ddmr_cli.cli.jobdir import safe_name
-
-    scratch.hydra.job.override_dirname, scratch.hydra.job.num, scratch.hydra.job.id = dirname, num, str(num)
-    try:
-        return str(OmegaConf.select(scratch, "hydra.sweep.subdir", throw_on_missing=True))
-    except Exception:  # noqa: BLE001  (an interpolation only Hydra's job runtime can resolve)
-        return safe_name(dirname)
-
-
-def plan_jobs(overrides: Iterable[str], cfg: DictConfig) -> list[dict]:
-    """The planned jobs of a sweep, ``[{"dir": ..., "overrides": [...]}, ...]``, from its overrides and the
-    composed config (its ``hydra`` node: sweeper params, override_dirname settings, ``hydra.sweep.subdir``).
-    ``cfg`` may also be the ``hydra`` node alone."""
-    from omegaconf import OmegaConf
-
-    root = cfg if "hydra" in cfg else OmegaConf.create({"hydra": OmegaConf.to_container(cfg, resolve=False)})
-    hydra_cfg = root.hydra
-    od = hydra_cfg.job.config.override_dirname
-    jobs = expand_jobs(overrides, dict(hydra_cfg.sweeper.get("params") or {}))
-    scratch = OmegaConf.create(OmegaConf.to_container(root, resolve=False))  # one copy for every job's subdir
-    if "job" not in scratch.hydra:
-        scratch.hydra.job = {}
-    from ddmr_cli.cli.config.compose_once import OverrideParser
-
-    parse = OverrideParser().parse  # a sweep's jobs share most override lines: each is parsed once
-    return [{"dir": _subdir(scratch, job_dirname(job, od.exclude_keys, od.item_sep, od.kv_sep, parse), num),
-             "overrides": job} for num, job in enumerate(jobs)]
-
-
-def shared_dir(plan: list[dict]) -> tuple[dict, dict] | None:
-    """The first two planned jobs that would write into one dir, or None."""
-    seen: dict[str, dict] = {}
-    for job in plan:
-        if job["dir"] in seen:
-            return seen[job["dir"]], job
-        seen[job["dir"]] = job
-    return None
 
 
 TABLES = (JOBS_CSV, SWEEP_METRICS_CSV, SWEEP_SEGMENTS_CSV)
@@ -135,7 +66,7 @@ def _recorded_tables(sweep_dir: Path) -> dict[str, dict]:
 def check_dir(sweep_dir: Path) -> None:
     """Refuse a sweep dir whose ``sweep_plan.json`` or sweep tables ddmr did not write (a table the plan file
     does not record): the sweep would overwrite them. Raises ``FaultError`` (exit 1)."""
-    from ddmr_cli.cli.jobdir import FaultError
+    from ddmr_cli.storage.jobdir import FaultError
 
     sweep_dir = Path(sweep_dir)
     plan = sweep_dir / PLAN
@@ -160,7 +91,7 @@ def _install_tables(sweep_dir: Path, staged: Path) -> None:
     """Replace the tables of an earlier sweep into this dir by the staged ones: the old ones go (only those the
     plan file records), the new ones' digests are recorded in the plan file, then they are moved in,
     ``sweep_jobs.csv`` last (the CLI takes a sweep without it as failed)."""
-    from ddmr_cli.cli.jobdir import digest
+    from ddmr_cli.storage.jobdir import digest
 
     plan = read_plan(sweep_dir)
     _remove_tables(sweep_dir)  # no table of an earlier sweep stays beside this one's
@@ -173,7 +104,7 @@ def _install_tables(sweep_dir: Path, staged: Path) -> None:
 
 def _remove_tables(sweep_dir: Path) -> None:
     """Remove the sweep tables this dir's plan records (a table changed since is kept as ``<name>.changed``)."""
-    from ddmr_cli.cli.jobdir import _set_aside, digest
+    from ddmr_cli.storage.jobdir import _set_aside, digest
 
     for name, want in _recorded_tables(sweep_dir).items():
         path = Path(sweep_dir) / name
@@ -242,8 +173,8 @@ def read_state(sweep_dir: Path, plan: list[dict] | None = None, every_dir: bool 
 
 def _changed(job_dir: Path, summary: dict) -> str | None:
     """Why a complete job's files are not the ones its summary records (None: they are, or the summary
-    predates digests). Dropped series and plots are allowed (:func:`ddmr_cli.cli.jobdir.verify`)."""
-    from ddmr_cli.cli.jobdir import verify
+    predates digests). Dropped series and plots are allowed (:func:`ddmr_cli.storage.jobdir.verify`)."""
+    from ddmr_cli.storage.jobdir import verify
 
     return verify(job_dir, summary, strict=False) if "digests" in summary else None
 
@@ -263,7 +194,7 @@ def _typed_overrides(overrides: Iterable[str]) -> dict[str, Any]:
     values typed as Hydra parses them (int, float, bool, str, list, ...); ``hydra.*`` left out."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    parsed = OverridesParser.create().parse_overrides([o for o in overrides if not _is_hydra_override(o)])
+    parsed = OverridesParser.create().parse_overrides([o for o in overrides if not is_hydra_override(o)])
     return {o.get_key_element().lstrip("+~"): o.value() for o in parsed}
 
 
@@ -411,9 +342,9 @@ def summary_lines(jobs: "pd.DataFrame", keys: list[str], units: dict[str, str]) 
     return out
 
 
-def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
+def aggregate(sweep_dir: Path, unit_of: Callable[[str], str | None] | None = None) -> SweepState:
     """Write the sweep-level tables and print the summary of the planned jobs; returns the sweep's state.
-    ``cfg`` (the sweep's composed config) gives the units of the swept keys."""
+    ``unit_of`` gives the unit of a swept key (None when unknown)."""
     state = read_state(sweep_dir)
     keys, values = swept_values(_job_overrides(state))
     jobs = jobs_table(state, keys, values)
@@ -430,15 +361,7 @@ def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
         staged = str(jobdir.Stage(state.sweep_dir / jobdir.TABLES_STAGE).path)
         print(f"ddmr: error: {fault.path.replace(staged, str(state.sweep_dir))}: {fault.reason}", file=sys.stderr)
         return state
-    units = {}
-    if cfg is not None:
-        from ddmr_cli.cli.config import key_doc
-
-        for key in keys:
-            try:
-                units[key] = key_doc(cfg, key).unit
-            except KeyError:  # a key only some jobs' configs have
-                pass
+    units = {key: unit for key in keys if unit_of is not None and (unit := unit_of(key)) is not None}
     print(f"\nddmr sweep: {len(state.complete)} complete, {len(state.failed)} failed, {len(state.missing)} missing "
           f"-> {state.sweep_dir}")
     if not jobs.empty:
@@ -449,23 +372,3 @@ def aggregate(sweep_dir: Path, cfg: DictConfig | None = None) -> SweepState:
               f"this sweep's plan; left alone, not in its tables")
     print(f"  tables: {JOBS_CSV}, {SWEEP_METRICS_CSV}, {SWEEP_SEGMENTS_CSV}; report: ddmr report {state.sweep_dir}")
     return state
-
-
-class SweepAggregator(Callback):
-    """Hydra callback: writes the sweep plan at the start and the sweep tables at the end of a multirun."""
-
-    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        plan = plan_jobs(config.hydra.overrides.task, config)
-        write_plan(Path(config.hydra.sweep.dir), plan)
-
-    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        aggregate(Path(config.hydra.sweep.dir), config)
-        _shutdown_joblib_workers()
-
-
-def _shutdown_joblib_workers() -> None:
-    """Stop the joblib launcher's worker processes now rather than after loky's idle timeout."""
-    if "joblib" in sys.modules:
-        from joblib.externals.loky import get_reusable_executor
-
-        get_reusable_executor().shutdown(wait=True)

@@ -20,12 +20,12 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from ddmr_cli.cli.config.build import build_robot, build_scenario, build_simulation, build_terrain, instantiate_checked
+from ddmr_cli.config.build import build_robot, build_scenario, build_simulation, build_terrain, instantiate_checked
 
 
 @lru_cache(maxsize=64)
 def _composed(overrides: tuple[str, ...]) -> DictConfig:
-    from ddmr_cli.cli.config import compose_config
+    from ddmr_cli.config import compose_config
 
     cfg = compose_config(list(overrides))
     OmegaConf.set_readonly(cfg, True)

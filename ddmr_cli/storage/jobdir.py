@@ -5,7 +5,7 @@
   overrides are recorded inside the job dir (``summary.json``, ``.hydra/overrides.yaml``).
 - :class:`Stage`: a job writes every output file into a temporary sibling dir (``.<name>.<pid>.tmp``, marked as
   ddmr's by a ``.ddmr-stage`` file), then moves them into the job dir and writes ``summary.json`` last (sealed:
-  :func:`ddmr_cli.cli.io.seal`), with the size and SHA-256 of every file. Before that, :func:`begin` removes the
+  :func:`ddmr_cli.storage.io.seal`), with the size and SHA-256 of every file. Before that, :func:`begin` removes the
   old ``summary.json`` first, then the old outputs the old summary lists, and stale temporaries ddmr named.
 - Nothing else is ever deleted: :func:`check_clear` refuses a dir where a file or dir sits at an output's name
   that no summary of that dir lists (a user's ``config.yaml``, ``plots/holiday.png``), and a listed file whose
@@ -32,7 +32,7 @@ import sys
 import time
 from pathlib import Path
 
-from ddmr_cli.cli import io
+from ddmr_cli.storage import io
 
 log = logging.getLogger("ddmr")
 
@@ -45,7 +45,7 @@ COMMIT = ".ddmr-commit.json"
 TABLES_STAGE = "sweep-tables"
 #: output options that change which files a job writes but not its numbers (outside the config hash)
 OUTPUT_OPTIONS = ("run.plots",)
-#: a temporary file of :func:`ddmr_cli.cli.io.atomic_write`: ``.<name>.<pid>.<8 hex>.tmp``
+#: a temporary file of :func:`ddmr_cli.storage.io.atomic_write`: ``.<name>.<pid>.<8 hex>.tmp``
 _ATOMIC_TMP = re.compile(r"\.(?P<name>.+)\.(?P<pid>\d+)\.[0-9a-f]{8}\.tmp")
 #: most dirs looked at below an output dir for the lock of another run (a bound for ``hydra.run.dir=~``)
 _MAX_WALK = 20000

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddmr_cli.report.plotting import REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of, save, thin
+from ddmr_cli.plots.common import REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of, save, thin
 
 
 def _plot(ax, x, y, **kw):

@@ -1,10 +1,10 @@
-"""The Hydra task function behind ``ddmr run``: one job = one controller x scenario x batch of seeds.
+"""One job = one controller x scenario x batch of seeds, simulated and written into its own dir.
 
-It writes into Hydra's output dir: ``config.yaml`` (resolved), ``metrics.csv`` (tidy, one row per seed),
+It writes into its output dir (Hydra's, for ``ddmr run``): ``config.yaml`` (resolved), ``metrics.csv`` (tidy, one row per seed),
 ``segments.csv`` (per seed and terrain zone / scenario phase), ``series.npz`` (kept time series),
 ``plots/*.png`` and, last, ``summary.json`` (status, config hash, across-seed statistics, size and SHA-256 of
 every file). The files are written into a temporary sibling dir and moved in before the summary
-(:mod:`ddmr_cli.cli.jobdir`). A job whose directory already holds a complete summary with the same config hash
+(:mod:`ddmr_cli.storage.jobdir`). A job whose directory already holds a complete summary with the same config hash
 and every recorded file intact is skipped (resume); otherwise its old summary goes first, then its old files.
 In a sweep a failing job records its failure and returns, so the other jobs and the aggregation go on; a
 single run prints one line (``ddmr: error: <path>: <reason>`` for a file-system fault, exit 1).
@@ -17,14 +17,16 @@ import platform
 import sys
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from omegaconf import DictConfig
 
-from ddmr_cli.cli import io, jobdir
+from ddmr_cli.storage import io, jobdir
 from ddmr_cli.errors import DDMRError
-from ddmr_cli.cli.config import build_simulation, config_hash, kept_seeds, seeds_of, validate_config
-from ddmr_cli.cli.config.build import result_config
+from ddmr_cli.config import build_simulation, config_hash, kept_seeds, seeds_of, validate_config
+from ddmr_cli.config.build import result_config
 
 log = logging.getLogger("ddmr")
 
@@ -44,27 +46,33 @@ class ProgressLog:
                      100.0 * done / total, now - self.start)
 
 
-def _job_info() -> tuple[Path, list[str]]:
-    from hydra.core.hydra_config import HydraConfig
+@dataclass(frozen=True)
+class JobPlace:
+    """Where a job runs: its output dir, its overrides (as given) and whether it is one job of a sweep (then its
+    failure is recorded and returned, not raised, and it simulates on one thread unless ``run.threads`` says
+    otherwise). The Hydra task function (:mod:`ddmr_cli.cli.hydra_main`) reads them from Hydra's runtime."""
 
-    hc = HydraConfig.get()
-    return Path(hc.runtime.output_dir), list(hc.overrides.task)
+    out: Path
+    overrides: tuple[str, ...] = ()
+    in_sweep: bool = False
+
+    def threads(self, cfg: DictConfig) -> int:
+        """``run.threads``, else one thread in a sweep (its jobs already run in parallel processes), else all."""
+        return int(cfg.run.threads) or (1 if self.in_sweep else 0)
 
 
-def _in_sweep() -> bool:
-    """True inside a job of a multirun (False for a single run and outside Hydra, e.g. the Python API)."""
-    from hydra.core.hydra_config import HydraConfig
-
-    if not HydraConfig.initialized():
-        return False
-    return "MULTIRUN" in str(HydraConfig.get().mode)
+#: what a job does: ``task(cfg, place, digest, sim) -> summary`` (default :func:`execute`)
+Task = Callable[[DictConfig, JobPlace, str, object], dict]
 
 
-def run_job(cfg: DictConfig, task=None) -> dict:
-    """Run one job and write its outputs; returns its summary. ``task`` (default :func:`execute`, same
-    signature) is what the job does; the sensitivity study's jobs pass theirs (:mod:`ddmr_cli.study.task`)."""
-    out, overrides = _job_info()
-    if _in_sweep():
+def run_job(cfg: DictConfig, place: JobPlace, task: Task | None = None) -> dict:
+    """Run one job and write its outputs into ``place.out``; returns its summary. ``task`` (default
+    :func:`execute`) is what the job does; the sensitivity study's jobs pass theirs (:mod:`ddmr_cli.study.task`).
+
+    A directory holding a complete summary with the same config hash and every recorded file intact is skipped
+    (resume)."""
+    out, overrides = place.out, list(place.overrides)
+    if place.in_sweep:
         _exit_with_parent()
     digest = config_hash(cfg)
     previous = io.read_summary(out)
@@ -79,19 +87,20 @@ def run_job(cfg: DictConfig, task=None) -> dict:
     try:
         jobdir.begin(out)  # refuses (nothing changed) when something it did not write is in the way
     except OSError as exc:
-        return _failed(exc, base, started, out, record=False)
+        return _failed(exc, base, started, place, record=False)
     try:
         sim = validate_config(cfg)
         base["controller"], base["scenario"] = _names(cfg)
-        summary = (task or execute)(cfg, out, overrides, digest, sim)
+        summary = (task or execute)(cfg, place, digest, sim)
     except Exception as exc:  # recorded, so a sweep carries on; re-raised for a single run
-        return _failed(exc, base, started, out)
+        return _failed(exc, base, started, place)
     return summary
 
 
-def _failed(exc: Exception, base: dict, started: float, out: Path, record: bool = True) -> dict:
+def _failed(exc: Exception, base: dict, started: float, place: JobPlace, record: bool = True) -> dict:
     """A failed job: its summary records the failure (``record``: not when the job was refused because a file
     it did not write is in the way, so nothing of the dir changes); a single run prints one line and exits."""
+    out = place.out
     error = f"{type(exc).__name__}: {exc}"
     fault = jobdir.fault(exc, out) if isinstance(exc, OSError) else None
     log.error("job failed: %s", error)
@@ -104,7 +113,7 @@ def _failed(exc: Exception, base: dict, started: float, out: Path, record: bool 
             io.write_summary(out, failed)
         except OSError:  # the fault itself (disk full, read-only): nothing more can be recorded
             pass
-    if not _in_sweep():
+    if not place.in_sweep:
         if fault is not None:  # a file-system fault: one line naming the path, exit 1
             print(f"ddmr: error: {fault.path}: {fault.reason}", file=sys.stderr)
             raise SystemExit(1) from None
@@ -143,19 +152,20 @@ def _exit_with_parent() -> None:
 
 
 def _names(cfg: DictConfig) -> tuple[str, str]:
-    from ddmr_cli.cli.config.build import controller_name
+    from ddmr_cli.config.build import controller_name
 
     return controller_name(cfg.controller), str(cfg.scenario.name)
 
 
-def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, digest: str | None = None,
-            sim=None) -> dict:
-    """Simulate the config's seeds and write every output file into ``out`` (staged, then moved in with the
+def execute(cfg: DictConfig, place: JobPlace, digest: str | None = None, sim=None) -> dict:
+    """Simulate the config's seeds and write every output file into ``place.out`` (staged, then moved in with the
     summary last); returns the summary."""
     sim = sim if sim is not None else build_simulation(cfg)  # run_job passes the one it validated
     seeds = seeds_of(cfg)
+    out = place.out
     with jobdir.Stage(out) as stage:
-        summary = _simulate_and_write(cfg, sim, seeds, stage.path, overrides, digest)
+        summary = _simulate_and_write(cfg, sim, seeds, stage.path, list(place.overrides), digest,
+                                      place.threads(cfg))
         summary = stage.commit(summary)
     stats = summary["statistics"]
     label = f"{summary['controller']}/{summary['scenario']}"
@@ -167,12 +177,10 @@ def execute(cfg: DictConfig, out: Path, overrides: list[str] | None = None, dige
     return summary
 
 
-def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overrides, digest) -> dict:
+def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overrides, digest, threads: int) -> dict:
     """Simulate and write every output file into ``out`` (the staging dir); returns the summary to commit."""
     from ddmr_cli.engine.simulation import simulate
 
-    # a sweep already runs jobs in parallel processes: one thread each unless asked otherwise
-    threads = int(cfg.run.threads) or (1 if _in_sweep() else 0)
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
     result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
@@ -185,7 +193,7 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     if result.series:
         io.write_series(out / io.SERIES, result.series)
         if cfg.run.plots:
-            from ddmr_cli.report.run_plots import run_plots
+            from ddmr_cli.plots.run import run_plots
 
             seed = next(iter(result.series))
             run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR)
@@ -209,4 +217,4 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     }
 
 
-__all__ = ["run_job", "execute"]
+__all__ = ["JobPlace", "Task", "run_job", "execute", "ProgressLog"]

@@ -26,8 +26,8 @@ import numpy as np
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.checks import integer, positive
-from ddmr_cli.cli import budget
-from ddmr_cli.cli.config.build import build_simulation, check_targets
+from ddmr_cli.config import budget
+from ddmr_cli.config.build import build_simulation, check_targets
 from ddmr_cli.errors import ConfigError
 
 #: the forms of run.keep_series
@@ -301,7 +301,7 @@ def validate_config(cfg: DictConfig):
 
 
 def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.Estimate:
-    """The memory estimate of a composed config's job (:mod:`ddmr_cli.cli.budget`)."""
+    """The memory estimate of a composed config's job (:mod:`ddmr_cli.config.budget`)."""
     kept = kept_seeds(cfg.run) if kept is None else kept
     return budget.estimate(sim, int(cfg.run.n_runs), len(kept))
 

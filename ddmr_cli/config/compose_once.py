@@ -11,7 +11,7 @@ done once per distinct set of group choices (the *skeleton*) and each job costs 
 group or its value is a dict); any override this module does not derive exactly (a package ``@``, a delete of a
 group, ``hydra.searchpath``) makes the job compose in full. :class:`SweepConfigLoader` is Hydra's config loader
 with this shortcut in :meth:`~SweepConfigLoader.load_sweep_config`, the call by which Hydra's sweeper validates
-every job and its launchers (joblib, submitit, Ray) compose each job; :class:`ddmr_cli.cli.config.JobComposer`
+every job and its launchers (joblib, submitit, Ray) compose each job; :class:`ddmr_cli.config.JobComposer`
 uses the same rule for the CLI's own validation of every job. tests/test_config.py compares both with a full
 composition, ``hydra`` node included, for every kind of override.
 """

@@ -2,7 +2,7 @@
 
 Each YAML file of a group starts from its schema (``defaults: [/schema_<name>@_here_]``), so a
 misspelt key or a wrong type is refused when the config is composed. Per-wheel gains accept a number or a
-``[right, left]`` pair, hence ``Any``; :mod:`ddmr_cli.cli.config.validate` checks the values.
+``[right, left]`` pair, hence ``Any``; :mod:`ddmr_cli.config.validate` checks the values.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ def param(default: Any = MISSING, *, unit: str, help: str, range: str = "", mode
     """A schema field with its documentation, the one place a key's meaning lives.
 
     ``unit`` (``"1"`` dimensionless, ``""`` not a number), ``help`` (one line), ``range`` (the valid values, as
-    text; :mod:`ddmr_cli.cli.config.validate` enforces them), ``model`` (section of docs/model.md), ``paper``
+    text; :mod:`ddmr_cli.config.validate` enforces them), ``model`` (section of docs/model.md), ``paper``
     (where the paper states it), ``entries`` (documentation of the keys of a free-form dict field).
     ``ddmr run --help`` and ``ddmr explain KEY`` print them."""
     metadata = {"unit": unit, "help": help, "range": range, "model": model, "paper": paper, "entries": entries}

@@ -7,10 +7,10 @@ from typing import Any, Callable, Iterator, Sequence
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
-from ddmr_cli.cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
+from ddmr_cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
 from hydra_plugins.ddmr_sweeper import ddmr_sweeper  # noqa: F401  (registers hydra/sweeper=ddmr, conf/launcher/*.yaml)
-from ddmr_cli.cli.config.build import build_simulation, config_hash, seeds_of
-from ddmr_cli.cli.config.validate import kept_seeds, validate_config
+from ddmr_cli.config.build import build_simulation, config_hash, seeds_of
+from ddmr_cli.config.validate import kept_seeds, validate_config
 
 CONFIG_MODULE = "ddmr_cli.conf"
 MODEL_DOC = "docs/model.md"
@@ -19,8 +19,8 @@ MODEL_DOC = "docs/model.md"
 def _register_resolvers() -> None:
     """``${ddmr.eq:a,b}``: true when the two (interpolated) strings are equal; e.g. per-job plots for one job of
     a sweep (conf/experiment/smoke.yaml); ``${ddmr.digest:text}`` (:func:`_digest`); ``${ddmr.jobdir:name}``
-    (:func:`ddmr_cli.cli.jobdir.safe_name`). Registered on import, in every process that composes a config."""
-    from ddmr_cli.cli.jobdir import safe_name
+    (:func:`ddmr_cli.storage.jobdir.safe_name`). Registered on import, in every process that composes a config."""
+    from ddmr_cli.storage.jobdir import safe_name
 
     OmegaConf.register_new_resolver("ddmr.eq", lambda a, b: str(a) == str(b), replace=True)
     OmegaConf.register_new_resolver("ddmr.digest", _digest, replace=True)
@@ -67,14 +67,14 @@ class JobComposer:
     (``controller=pid``, ``+experiment=table4``), then the remaining value overrides applied in order to the
     result (``ConfigLoaderImpl._apply_overrides_to_config``, struct mode on). A sweep of values (seeds, gains,
     parameters of a study) has one set of group choices, so the first stage, about 0.12 s a job, is done once
-    and each job costs a copy and its value overrides, by the rule of :mod:`ddmr_cli.cli.config.compose_once`
+    and each job costs a copy and its value overrides, by the rule of :mod:`ddmr_cli.config.compose_once`
     (which Hydra's own composition of the jobs, in the sweeper and the launchers, also follows). Any job of a
     user's config dir (``--config-path``, ``--config-dir``) composes in full. tests/test_config.py checks the
     result against a full composition for every kind of override.
     """
 
     def __init__(self, config_name: str = "config", config_dir: str | None = None, extra: Sequence[str] = ()):
-        from ddmr_cli.cli.config.compose_once import Skeletons
+        from ddmr_cli.config.compose_once import Skeletons
 
         self.config_name, self.config_dir, self.extra = config_name, config_dir, list(extra)
         self._skeletons = Skeletons()
@@ -84,7 +84,7 @@ class JobComposer:
         """The job's config, without the hydra node: equal to ``compose_config(overrides + extra)``."""
         from omegaconf import open_dict
 
-        from ddmr_cli.cli.config.compose_once import split_overrides
+        from ddmr_cli.config.compose_once import split_overrides
 
         full = [*overrides, *self.extra]
         if self.config_dir or self.extra:  # the groups of a user's config dirs: Hydra's repository of the job
@@ -120,6 +120,42 @@ def group_options(group: str) -> list[str]:
     return sorted(options)
 
 
+#: groups chosen with ``+group=option`` (no default in config.yaml): the experiment presets and tuning studies
+ADDED_GROUPS = ("experiment", "tune")
+
+
+def config_groups() -> list[str]:
+    """Every config group of the packaged config (``robot``, ``controller``, ..., ``sensor``, ``actuator``), in
+    ``config.yaml``'s defaults order, then the groups added with ``+`` (:data:`ADDED_GROUPS`), then the rest;
+    read from the packaged config, so a new group is listed without a code change."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.object_type import ObjectType
+
+    with _initialized():
+        repo = GlobalHydra.instance().config_loader().repository  # type: ignore[attr-defined]
+        groups = [name for name in repo.get_group_options("", results_filter=ObjectType.GROUP)
+                  if name != "hydra" and not name.startswith("_")]
+    defaults = [str(d).split(":")[0].split("@")[0].lstrip("/") for d in _defaults_order()]
+    order = {g: i for i, g in enumerate([*defaults, *ADDED_GROUPS])}
+    return sorted(groups, key=lambda g: (order.get(g, len(order)), g))
+
+
+def _defaults_order() -> list[str]:
+    """The group names of the packaged ``config.yaml``'s defaults list, in order."""
+    from importlib import resources
+
+    from omegaconf import OmegaConf
+
+    text = resources.files(CONFIG_MODULE).joinpath("config.yaml").read_text(encoding="utf-8")
+    out = []
+    for entry in OmegaConf.create(text).get("defaults", []):
+        if isinstance(entry, str):
+            out.append(entry)
+        else:
+            out.extend(str(k) for k in entry)
+    return out
+
+
 def run_config(cfg, progress: Callable[[int, int], None] | None = None):
     """Validate a composed config, build its simulation and run its seeds. Returns a SimulationResult."""
     from ddmr_cli.engine.simulation import simulate
@@ -130,7 +166,7 @@ def run_config(cfg, progress: Callable[[int, int], None] | None = None):
 
 @dataclasses.dataclass(frozen=True)
 class KeyDoc:
-    """What the schema says about one key of a composed config (see :func:`ddmr_cli.cli.config.schema.param`)."""
+    """What the schema says about one key of a composed config (see :func:`ddmr_cli.config.schema.param`)."""
 
     key: str
     value: Any

@@ -34,11 +34,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from ddmr_cli.checks import integer, one_of
-from ddmr_cli.cli import io
+from ddmr_cli.storage import io
 from ddmr_cli.engine.metrics import STEADY
 from ddmr_cli.errors import ConfigError
 
@@ -120,7 +119,7 @@ def evaluate_gains(cfg: DictConfig, threads: int = 0) -> TrialOutcome:
     """Simulate a study config's tuning seeds in every scenario of ``tuning.scenarios``; the objective values
     with the constraints applied: docs/model.md §9, the deviation [9a], the chattering [9b], the violation and
     penalty [9c] (:func:`penalised`)."""
-    from ddmr_cli.cli.config import seeds_of, validate_config
+    from ddmr_cli.config import seeds_of, validate_config
     from ddmr_cli.engine.simulation import simulate
 
     two = str(cfg.tuning.objective) == "pareto"
@@ -160,26 +159,17 @@ def evaluate_gains(cfg: DictConfig, threads: int = 0) -> TrialOutcome:
                         chattering, saturation, runs, diverged, per)
 
 
-def sweeper_keys() -> list[str]:
-    """The keys the Optuna sweeper samples in this job (its ``hydra.sweeper.params``)."""
-    from hydra.core.hydra_config import HydraConfig
-
-    return [str(k) for k in (HydraConfig.get().sweeper.get("params") or {})]
-
-
-def run_trial(cfg: DictConfig) -> float | list[float]:
-    """The Hydra task of a trial: evaluate the sampled gains, write ``trial.json``, return the objective."""
-    from hydra.core.hydra_config import HydraConfig
-
-    hc = HydraConfig.get()
-    out = Path(hc.runtime.output_dir)
-    keys = sweeper_keys()
+def run_trial(cfg: DictConfig, place, keys: list[str]) -> float | list[float]:
+    """A trial of the study (the Hydra task, :mod:`ddmr_cli.cli.hydra_main`): evaluate the gains the sweeper
+    sampled (``keys``, its ``hydra.sweeper.params``), write ``trial.json`` into ``place.out``, return the
+    objective."""
+    out = Path(place.out)
     params = {k: OmegaConf.to_container(v) if isinstance(v := OmegaConf.select(cfg, k), DictConfig) else v
               for k in keys}
     threads = int(cfg.run.threads) or 1  # trials run in parallel processes: one thread each unless asked
     started = time.perf_counter()
     outcome = evaluate_gains(cfg, threads)
-    io.write_json(out / TRIAL_FILE, {"params": params, "overrides": list(hc.overrides.task), "metric": OBJECTIVE_METRIC,
+    io.write_json(out / TRIAL_FILE, {"params": params, "overrides": list(place.overrides), "metric": OBJECTIVE_METRIC,
                                      **outcome.as_dict(), "wall_time": time.perf_counter() - started})
     shown = ", ".join(f"{k.rsplit('.', 1)[-1]}={v:.4g}" for k, v in params.items())
     state = "feasible" if outcome.feasible else f"infeasible ({outcome.reason})"
@@ -259,7 +249,7 @@ def check_study(cfg: DictConfig, overrides=()) -> list[Interval]:
     """Check a composed study config (with its ``hydra`` node): the tuning settings, the search space, and the
     config at its own (paper) gains. Returns the search space. Raises ConfigError naming the key."""
     from ddmr_cli.checks import finite
-    from ddmr_cli.cli.config import validate_config
+    from ddmr_cli.config import validate_config
 
     t = cfg.tuning
     one_of("tuning.objective", t.objective, OBJECTIVES)
@@ -309,7 +299,7 @@ def _check_sampler(cfg: DictConfig) -> None:
 def study_hash(cfg: DictConfig, overrides=()) -> str:
     """What a trial computes (the result config without the budget settings, plus the search space): a study
     may be resumed only with the same hash."""
-    from ddmr_cli.cli.config.build import result_config
+    from ddmr_cli.config.build import result_config
 
     container = result_config(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
     for key in _BUDGET_KEYS:
@@ -403,9 +393,9 @@ def read_study_info(sweep_dir: Path) -> dict | None:
 
 
 def _task_overrides(config: DictConfig) -> list[str]:
-    from ddmr_cli.cli.sweep import _is_hydra_override
+    from ddmr_cli.storage.sweep import is_hydra_override
 
-    return [str(o) for o in config.hydra.overrides.task if not _is_hydra_override(str(o))]
+    return [str(o) for o in config.hydra.overrides.task if not is_hydra_override(str(o))]
 
 
 def trial_dirs(sweep_dir: Path) -> list[tuple[frozenset, Path, dict]]:
@@ -469,46 +459,43 @@ def write_tables(sweep_dir: Path, study_name: str) -> dict:
     return record
 
 
-class StudyCallback(Callback):
-    """Hydra callback of a tuning study: records the study and its sessions (``tuning.json``), creates the dir the
-    SQLite storage lives in before the sweeper opens it, and writes the study's tables when the session ends."""
+def start_session(config: DictConfig) -> None:
+    """A tuning study's session starts (:class:`ddmr_cli.cli.callbacks.StudyCallback`): records the study and its
+    sessions (``tuning.json``) and creates the dir the SQLite storage lives in before the sweeper opens it."""
+    logging.getLogger("alembic").setLevel(logging.WARNING)  # its plugin set-up lines when Optuna imports it
+    import optuna
 
-    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        logging.getLogger("alembic").setLevel(logging.WARNING)  # its plugin set-up lines when Optuna imports it
-        import optuna
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    sweep_dir = Path(str(config.hydra.sweep.dir))
+    sweep_dir.mkdir(parents=True, exist_ok=True)
+    info = read_study_info(sweep_dir) or {
+        "study_name": str(config.hydra.sweeper.study_name), "controller": str(config.tuning.controller),
+        "objective": str(config.tuning.objective), "hash": study_hash(config, config.hydra.overrides.task),
+        "metric": OBJECTIVE_METRIC,
+        "overrides": _task_overrides(config), "sessions": []}
+    info["budget"] = int(config.tuning.n_trials)
+    info["search_space"] = space_texts(config, config.hydra.overrides.task)
+    info["sessions"].append({"started": time.time(), "n_trials": int(config.hydra.sweeper.n_trials),
+                             "sampler_seed": config.hydra.sweeper.sampler.get("seed"),
+                             "launcher": str(config.hydra.launcher.get("_target_", "")).rsplit(".", 1)[-1]})
+    io.write_json(sweep_dir / STUDY_FILE, info)
+    log.info("study %s: %d trials this session -> %s", info["study_name"], config.hydra.sweeper.n_trials, sweep_dir)
 
-        optuna.logging.set_verbosity(optuna.logging.WARNING)
-        sweep_dir = Path(str(config.hydra.sweep.dir))
-        sweep_dir.mkdir(parents=True, exist_ok=True)
-        info = read_study_info(sweep_dir) or {
-            "study_name": str(config.hydra.sweeper.study_name), "controller": str(config.tuning.controller),
-            "objective": str(config.tuning.objective), "hash": study_hash(config, config.hydra.overrides.task),
-            "metric": OBJECTIVE_METRIC,
-            "overrides": _task_overrides(config), "sessions": []}
-        info["budget"] = int(config.tuning.n_trials)
-        info["search_space"] = space_texts(config, config.hydra.overrides.task)
-        info["sessions"].append({"started": time.time(), "n_trials": int(config.hydra.sweeper.n_trials),
-                                 "sampler_seed": config.hydra.sweeper.sampler.get("seed"),
-                                 "launcher": str(config.hydra.launcher.get("_target_", "")).rsplit(".", 1)[-1]})
+
+def end_session(config: DictConfig) -> None:
+    """A tuning study's session ends: its wall time recorded, the study's tables written and its best printed."""
+    sweep_dir = Path(str(config.hydra.sweep.dir))
+    info = read_study_info(sweep_dir)
+    if info and info["sessions"]:
+        session = info["sessions"][-1]
+        session["wall_time"] = time.time() - session["started"]
         io.write_json(sweep_dir / STUDY_FILE, info)
-        log.info("study %s: %d trials this session -> %s", info["study_name"], config.hydra.sweeper.n_trials, sweep_dir)
-
-    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        from ddmr_cli.cli.sweep import _shutdown_joblib_workers
-
-        sweep_dir = Path(str(config.hydra.sweep.dir))
-        info = read_study_info(sweep_dir)
-        if info and info["sessions"]:
-            session = info["sessions"][-1]
-            session["wall_time"] = time.time() - session["started"]
-            io.write_json(sweep_dir / STUDY_FILE, info)
-        record = write_tables(sweep_dir, str(config.hydra.sweeper.study_name))
-        print(f"\nddmr study {record['study']}: {record['trials_done']}/{config.tuning.n_trials} trials -> {sweep_dir}")
-        for b in record["best"]:
-            gains = ", ".join(f"{k}={v:.4g}" for k, v in b["params"].items())
-            print(f"  trial {b['number']}: {', '.join(f'{v:.6g}' for v in b['values'])}  {gains}")
-        print(f"  tables: {TRIALS_CSV}, {BEST_FILE}; held-out evaluation and report: ddmr report {sweep_dir}")
-        _shutdown_joblib_workers()
+    record = write_tables(sweep_dir, str(config.hydra.sweeper.study_name))
+    print(f"\nddmr study {record['study']}: {record['trials_done']}/{config.tuning.n_trials} trials -> {sweep_dir}")
+    for b in record["best"]:
+        gains = ", ".join(f"{k}={v:.4g}" for k, v in b["params"].items())
+        print(f"  trial {b['number']}: {', '.join(f'{v:.6g}' for v in b['values'])}  {gains}")
+    print(f"  tables: {TRIALS_CSV}, {BEST_FILE}; held-out evaluation and report: ddmr report {sweep_dir}")
 
 
 def finish(sweep_dir: Path) -> int:
@@ -520,7 +507,7 @@ def finish(sweep_dir: Path) -> int:
 
 
 __all__ = ["OBJECTIVE_METRIC", "TrialOutcome", "evaluate_gains", "run_trial", "search_space", "check_study",
-           "prepare_study", "session_overrides", "study_hash", "load_study", "trials_table", "write_tables", "StudyCallback", "finish",
+           "prepare_study", "session_overrides", "study_hash", "load_study", "trials_table", "write_tables", "start_session", "end_session", "finish",
            "is_study", "scenario_config"]
 
 
@@ -559,7 +546,7 @@ class Study:
 
     def config(self, params: dict | None = None, extra=()) -> DictConfig:
         """The study's composed config, at ``params`` (e.g. a trial's gains) and ``extra`` overrides."""
-        from ddmr_cli.cli.config import compose_config
+        from ddmr_cli.config import compose_config
 
         return compose_config([*self.overrides, *(f"{k}={v!r}" for k, v in (params or {}).items()), *extra])
 
@@ -598,8 +585,8 @@ def run_held_out(studies: list[Study], root: Path) -> Path:
     every scenario: standard job dirs ``<root>/heldout/<gains>/<controller>-<scenario>`` (complete jobs with the
     same config hash are kept). Returns ``<root>/heldout``. Raises ConfigError when two studies tune the same
     controller."""
-    from ddmr_cli.cli.app import execute
-    from ddmr_cli.cli.config import config_hash, validate_config
+    from ddmr_cli.job import JobPlace, execute
+    from ddmr_cli.config import config_hash, validate_config
 
     single = [s for s in studies if s.objective == "deviation" and s.best()]
     seen: dict[str, Path] = {}
@@ -620,5 +607,5 @@ def run_held_out(studies: list[Study], root: Path) -> Path:
                     continue
                 print(f"ddmr: held-out {s.controller} at {gains} gains, {scenario}: seeds "
                       f"{int(cfg.run.base_seed)}-{int(cfg.run.base_seed) + int(cfg.run.n_runs) - 1}", flush=True)
-                execute(cfg, out, overrides, digest, validate_config(cfg))
+                execute(cfg, JobPlace(out, tuple(overrides)), digest, validate_config(cfg))
     return out_root

@@ -1,0 +1,239 @@
+"""The four things ``ddmr run`` can launch, one class each behind one small protocol.
+
+=====================  ==========================================================  =================================
+mode                   chosen when                                                 its jobs
+=====================  ==========================================================  =================================
+:class:`SingleRun`     no ``-m``                                                   one job in ``hydra.run.dir``
+:class:`Sweep`         ``-m``                                                      Hydra's sweeper expands the plan
+:class:`TuningStudy`   ``-m +tune=<controller>`` (a ``tuning`` node)               Optuna trials (Hydra's sweeper)
+:class:`CalibrationSearch` ``-m +experiment=sensitivity_calibration``              Optuna trials of the study's box
+=====================  ==========================================================  =================================
+
+Each mode answers, before Hydra starts, :meth:`Mode.plan` (the jobs it will run, each composed and validated,
+and the overrides that pin this session: raises ``ConfigError`` on a bad value), :meth:`Mode.preflight` (refuse
+an output dir where it would overwrite what ddmr did not write: ``FaultError``), :meth:`Mode.before_launch`
+(tidy what an interrupted launch left, under the dir's lock) and, after Hydra returns, :meth:`Mode.finish` (the
+exit status from what is on disk). :mod:`ddmr_cli.cli.run` drives them.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, ClassVar, Sequence
+
+from omegaconf import DictConfig
+
+from ddmr_cli.cli.usage import EXIT_FAILED, UsageError
+
+#: composes one job's config from its overrides (``hydra_node``: with the ``hydra`` node)
+Compose = Callable[..., DictConfig]
+
+
+@dataclass
+class Plan:
+    """What a mode will run: the jobs (dir relative to the output dir, overrides) and the session's overrides."""
+
+    jobs: list[dict]
+    session: list[str]
+
+
+class Mode:
+    """What ``ddmr run`` launches (see the module docstring)."""
+
+    #: Hydra's ``--multirun``
+    multirun: ClassVar[bool] = True
+    #: the kind of lock the output dir is held with (:class:`ddmr_cli.storage.jobdir.DirLock`)
+    lock_kind: ClassVar[str] = "sweep"
+
+    def plan(self, base: DictConfig, overrides: list[str], parsed, compose: Callable[[list[str]], DictConfig]) -> Plan:
+        """The jobs and the session's overrides, every job composed and validated (raises ConfigError)."""
+        raise NotImplementedError
+
+    def preflight(self, out_dir: Path, jobs: Sequence[dict]) -> None:
+        """Refuse (``FaultError``) an output dir where this launch would overwrite what ddmr did not write."""
+
+    def before_launch(self, out_dir: Path, jobs: Sequence[dict]) -> None:
+        """Under the output dir's lock, just before Hydra starts."""
+
+    def finish(self, out_dir: Path, jobs: Sequence[dict]) -> int:
+        """The exit status, read from the output dir as it is on disk."""
+        raise NotImplementedError
+
+
+def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: Callable[[list[str]], DictConfig]):
+    """Compose and validate every job (the model is built: derived numbers fail here); then the memory budget
+    of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
+    job's overrides."""
+    from ddmr_cli.config import budget
+    from ddmr_cli.config.validate import check_additions, job_estimate, message, validate_config
+    from ddmr_cli.errors import ConfigError
+
+    largest = None
+    for job in jobs:
+        current = job["overrides"]
+        try:
+            cfg = compose(current) if multirun else base
+            check_additions(cfg, current)
+            sim = validate_config(cfg)  # builds the model: derived numbers (J^-1, controller gains) fail here
+        except ConfigError as exc:
+            raise UsageError(message(exc, current)) from None
+        except (MemoryError, OverflowError) as exc:  # a value too large to validate
+            raise UsageError(f"{' '.join(current)}: too large to plan ({type(exc).__name__}); lower the largest "
+                             f"value") from None
+        est = job_estimate(cfg, sim)
+        largest = est if largest is None or est.total > largest.total else largest
+    if multirun and largest is not None:
+        at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
+                                 len(jobs))
+        budget.check(largest, base.run.get("max_memory_gb"), at_once, (base.get("cluster") or {}).get("mem_gb"))
+
+
+class SingleRun(Mode):
+    """One job (no ``-m``): its config composed and validated, its dir cleared of nothing ddmr did not write."""
+
+    multirun = False
+    lock_kind = "run"
+
+    def plan(self, base, overrides, parsed, compose):
+        jobs = [{"dir": "", "overrides": list(overrides)}]
+        _validate_jobs(jobs, base, False, compose)
+        return Plan(jobs, [])
+
+    def preflight(self, out_dir, jobs):
+        from ddmr_cli.storage import jobdir
+
+        jobdir.check_clear(out_dir)
+
+    def finish(self, out_dir, jobs):
+        from ddmr_cli.storage import io
+
+        summary = io.read_summary(out_dir)
+        return 0 if summary and summary.get("status") == "complete" else EXIT_FAILED
+
+
+class Sweep(Mode):
+    """A sweep (``-m``): Hydra's sweeper expands the overrides into jobs; every job is composed and validated
+    before anything is written, and none may write into another's dir or outside the sweep dir."""
+
+    def plan(self, base, overrides, parsed, compose):
+        from ddmr_cli.config.plan import plan_jobs
+
+        jobs = plan_jobs(overrides, base)
+        if not jobs:
+            empty = next((o.input_line for o in parsed if o.is_sweep_override() and not list(o.sweep_string_iterator())),
+                         "hydra.sweeper.params")
+            raise UsageError(f"{empty}: the sweep has no jobs (an empty range or list); nothing to run")
+        subdir = [o for o in overrides if o.startswith("hydra.sweep.subdir=")]
+        _refuse_escapes(jobs, subdir)
+        _refuse_shared_dirs(jobs, subdir)
+        _validate_jobs(jobs, base, True, compose)
+        return Plan(jobs, [])
+
+    def preflight(self, out_dir, jobs):
+        from ddmr_cli.storage import jobdir, sweep
+
+        sweep.check_dir(out_dir)
+        for job in jobs:
+            job_dir = out_dir / job["dir"]
+            if not os.path.lexists(job_dir):
+                continue
+            if not jobdir.inside(job_dir, out_dir):
+                raise jobdir.FaultError(job_dir, f"resolves to {job_dir.resolve()}, outside the sweep dir; a job "
+                                                 "writes only inside its sweep dir; remove the link or choose "
+                                                 "another dir")
+            jobdir.check_clear(job_dir)
+
+    def before_launch(self, out_dir, jobs):
+        from ddmr_cli.storage import jobdir
+
+        jobdir.clean_leftovers(out_dir, [job["dir"] for job in jobs])
+        print(f"ddmr: sweep of {len(jobs)} jobs validated -> {out_dir}", file=sys.stderr)
+
+    def finish(self, out_dir, jobs):
+        from ddmr_cli.storage import sweep
+        from ddmr_cli.study.task import STUDY_CSV
+
+        state = sweep.read_state(out_dir, plan=list(jobs))
+        # a sweep writes its tables; a sensitivity-study stage (+experiment=sensitivity_*) writes its study table
+        tables = (out_dir / sweep.JOBS_CSV).is_file() or (out_dir / STUDY_CSV).is_file()
+        status = 0 if state.ok and tables else EXIT_FAILED
+        faults = [s["fault"] for _, s in state.failed if isinstance(s.get("fault"), dict)]
+        if faults:
+            more = f" ({len(faults)} jobs failed on file-system faults)" if len(faults) > 1 else ""
+            print(f"ddmr: error: {faults[0]['path']}: {faults[0]['reason']}{more}", file=sys.stderr)
+        return status
+
+
+class TuningStudy(Mode):
+    """A gain-tuning study (``+tune=<controller>``, docs/model.md §9): Optuna's trials through Hydra's sweeper,
+    resumed from its SQLite storage; this session runs the rest of the budget."""
+
+    def plan(self, base, overrides, parsed, compose):
+        from ddmr_cli.study import tuning
+
+        return Plan([], tuning.prepare_study(base, overrides))
+
+    def finish(self, out_dir, jobs):
+        from ddmr_cli.study import tuning
+
+        return tuning.finish(out_dir)
+
+
+class CalibrationSearch(Mode):
+    """The sensitivity study's calibration search (``+experiment=sensitivity_calibration``, docs/model.md §11)."""
+
+    def plan(self, base, overrides, parsed, compose):
+        from ddmr_cli.study import search
+
+        return Plan([], search.prepare_search(base))
+
+    def finish(self, out_dir, jobs):
+        from ddmr_cli.study import search
+
+        return search.finish(out_dir)
+
+
+def mode_of(base: DictConfig, multirun: bool) -> Mode:
+    """The mode the composed config and ``-m`` choose (see the module docstring)."""
+    if not multirun:
+        return SingleRun()
+    from ddmr_cli.study import search, tuning
+
+    if search.is_search(base):
+        return CalibrationSearch()
+    if tuning.is_study(base):
+        return TuningStudy()
+    return Sweep()
+
+
+def _refuse_shared_dirs(plan: list[dict], subdir: list[str]) -> None:
+    """Two jobs of one plan that would write into one dir: refused, naming the ``hydra.sweep.subdir`` override
+    or the keys that tell them apart (left out of the dir names)."""
+    from ddmr_cli.config.plan import shared_dir
+
+    clash = shared_dir(plan)
+    if clash is None:
+        return
+    a, b = clash
+    differ = sorted({ov.lstrip("+~").partition("=")[0] for ov in set(a["overrides"]) ^ set(b["overrides"])})
+    raise UsageError(f"{subdir[-1] if subdir else ', '.join(differ) or 'hydra.sweep.subdir'}: jobs {' '.join(a['overrides'])!r} and "
+                     f"{' '.join(b['overrides'])!r} would write into one job dir {a['dir']!r}; sweep a key that names "
+                     f"the dir (not one of hydra.job.config.override_dirname.exclude_keys) or give hydra.sweep.subdir "
+                     f"a per-job value")
+
+
+def _refuse_escapes(plan: list[dict], subdir: list[str]) -> None:
+    """A planned job dir that is not a path strictly inside the sweep dir (``hydra.sweep.subdir=../x``, an
+    absolute path, ``.``): refused, naming the ``hydra.sweep.subdir`` override."""
+    for job in plan:
+        norm = os.path.normpath(job["dir"])
+        if os.path.isabs(norm) or norm == "." or norm.split(os.sep)[0] == "..":
+            raise UsageError(f"{subdir[-1] if subdir else 'hydra.sweep.subdir'}: job {' '.join(job['overrides'])!r} "
+                             f"would write into {job['dir']!r}, not a dir inside the sweep dir; give "
+                             f"hydra.sweep.subdir a relative path below it")
+
+
+__all__ = ["Mode", "Plan", "SingleRun", "Sweep", "TuningStudy", "CalibrationSearch", "mode_of"]
