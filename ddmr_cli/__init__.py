@@ -25,7 +25,7 @@ A sweep's results (``ddmr run -m ...``), one row per job and seed, swept keys as
 from importlib import import_module
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from ddmr_cli.version import __version__
 
 #: public name -> module that defines it; imported on first use (PEP 562), so ``ddmr --help`` starts fast
 _EXPORTS = {

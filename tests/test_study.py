@@ -16,7 +16,7 @@ from ddmr_cli.config import compose_config
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.study import analysis, claims, design, search
 from ddmr_cli.study.space import Box, Parameter
-from ddmr_cli.study.task import study_configs
+from ddmr_cli.study.setup import study_configs
 
 from conftest import run_ddmr
 

@@ -19,7 +19,7 @@ from ddmr_cli.cli.main import main
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.study import analysis, claims, design, search
 from ddmr_cli.study.space import Box
-from ddmr_cli.study.task import study_setup
+from ddmr_cli.study.setup import study_setup
 
 
 @pytest.fixture(scope="module")

@@ -90,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(USAGE)
         return 0 if argv else EXIT_USAGE
     if argv[0] == "--version":
-        from ddmr_cli import __version__
+        from ddmr_cli.version import __version__
 
         print(f"ddmr {__version__}")
         return 0

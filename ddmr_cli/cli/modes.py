@@ -154,7 +154,7 @@ class Sweep(Mode):
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.storage import sweep
-        from ddmr_cli.study.task import STUDY_CSV
+        from ddmr_cli.study.setup import STUDY_CSV
 
         state = sweep.read_state(out_dir, plan=list(jobs))
         # a sweep writes its tables; a sensitivity-study stage (+experiment=sensitivity_*) writes its study table

@@ -45,7 +45,6 @@ from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
 
-import ddmr_cli
 from ddmr_cli.compiled import AVAILABLE, jit_enabled
 
 _TEMPLATE_MODULE = "ddmr_cli.engine.stepper"
@@ -87,7 +86,7 @@ def _versions() -> str:
 
 @lru_cache(maxsize=1)
 def _law_sources_digest() -> str:
-    root = Path(ddmr_cli.__file__).parent
+    root = Path(__file__).resolve().parents[1]  # the ddmr_cli package
     digest = hashlib.sha256(_versions().encode())
     for entry in _LAW_PACKAGES:
         paths = [root / entry] if entry.endswith(".py") else sorted((root / entry).rglob("*.py"))

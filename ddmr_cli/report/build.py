@@ -79,7 +79,7 @@ class Report:
 
     # --- sections ----------------------------------------------------------------------------------------
     def header(self) -> None:
-        from ddmr_cli import __version__
+        from ddmr_cli.version import __version__
 
         d = self.data
         kind = "run dir" if d.single_run else "sweep dir"

@@ -47,7 +47,7 @@ def _study_config(stage_dir: Path):
 
 
 def _box_and_faithful(out: Path):
-    from ddmr_cli.study.task import study_setup
+    from ddmr_cli.study.setup import study_setup
 
     for stage in ("oat", "morris", "lhs", "calibration", "sobol", "map", "points"):
         cfg = _study_config(out / stage)

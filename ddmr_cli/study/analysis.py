@@ -204,7 +204,7 @@ def _scalar(value):
 
 def analyse(sweep_dir: Path, config, rows: "pd.DataFrame") -> list[str]:
     """Write the stage's analysis into ``sweep_dir``; returns summary lines for the terminal."""
-    from ddmr_cli.study.task import study_setup
+    from ddmr_cli.study.setup import study_setup
 
     box, _, _, design = study_setup(config, sweep_dir)
     study = config.study

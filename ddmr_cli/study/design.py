@@ -138,7 +138,7 @@ def build(study, box: Box, faithful: Mapping[str, Any], sweep_dir=None) -> Desig
     if stage == "lhs":
         return latin(box, faithful, int(study.lhs.samples), seed)
     if stage == "calibration":  # one trial of the search: the sampled reading, the rest faithful
-        from ddmr_cli.study.search import reading_of
+        from ddmr_cli.study.space import reading_of
 
         return Design("calibration", box.global_names(), [{**faithful, **reading_of(study, full)}], ["trial"], None)
     if stage == "points":

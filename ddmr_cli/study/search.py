@@ -31,13 +31,12 @@ from omegaconf import DictConfig, OmegaConf
 
 from ddmr_cli.storage import io
 from ddmr_cli.study import claims as claim_stats
-from ddmr_cli.study.space import Box
+from ddmr_cli.study.space import READING, reading_of, Box
 
 if TYPE_CHECKING:
     import pandas as pd
 
 STAGE = "calibration"
-READING = "study.reading"
 #: a trial's sampled value of parameter p is the Hydra override ``+study.reading.<p>=value``
 PREFIX = f"+{READING}."
 SEARCH_FILE = "search.json"
@@ -76,20 +75,6 @@ def suggest_reading(cfg: DictConfig, trial) -> None:
             trial.suggest_int(key, int(math.ceil(p.low)), int(math.floor(p.high)), log=p.scale == "log")
         else:
             trial.suggest_float(key, float(p.low), float(p.high), log=p.scale == "log")
-
-
-def reading_of(study: DictConfig, box: Box) -> dict[str, Any]:
-    """A trial's reading (``study.reading``), each value checked against the box (ConfigError naming the key)."""
-    from ddmr_cli.errors import ConfigError
-
-    reading = OmegaConf.to_container(study.get("reading") or OmegaConf.create({}), resolve=True)
-    for name, value in reading.items():
-        p = box[name]
-        ok = value in p.options if p.is_choice else (isinstance(value, (int, float)) and p.low <= value <= p.high)
-        if not ok:
-            bounds = list(p.options) if p.is_choice else [p.low, p.high]
-            raise ConfigError(f"{READING}.{name}", value, f"must be in the box {bounds}")
-    return reading
 
 
 #: weights of the objective's two terms (docs/model.md §11): Table 4's 16 means, and its 4 across-seed SDs, which
@@ -174,7 +159,7 @@ def prepare_search(cfg: DictConfig) -> list[str]:
     from ddmr_cli.config import validate_config
     from ddmr_cli.study.tuning import session_overrides
     from ddmr_cli.errors import ConfigError
-    from ddmr_cli.study.task import study_setup
+    from ddmr_cli.study.setup import study_setup
 
     check_search(cfg)
     study_setup(cfg)  # every parameter a key of a study config
@@ -288,7 +273,7 @@ def finish(sweep_dir: Path) -> int:
     trial job is complete and the study table is written."""
     from ddmr_cli.storage.sweep import read_state
     from ddmr_cli.study.tuning import STORAGE_FILE, load_study, trials_done
-    from ddmr_cli.study.task import STUDY_CSV
+    from ddmr_cli.study.setup import STUDY_CSV
 
     sweep_dir = Path(sweep_dir)
     info = io.read_json(sweep_dir / SEARCH_FILE)

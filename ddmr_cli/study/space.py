@@ -266,4 +266,21 @@ def _parse_value(text: str) -> Any:
     return OverridesParser.create().parse_override(f"k={text}").value()
 
 
-__all__ = ["Parameter", "Box", "SET", "SCALE", "LOG", "LINEAR"]
+#: the config key of a calibration trial's reading
+READING = "study.reading"
+
+
+def reading_of(study: DictConfig, box: Box) -> dict[str, Any]:
+    """A trial's reading (``study.reading``), each value checked against the box (ConfigError naming the key)."""
+    reading = OmegaConf.to_container(study.get("reading") or OmegaConf.create({}), resolve=True)
+    for name, value in reading.items():
+        p = box[name]
+        ok = value in p.options if p.is_choice else (isinstance(value, (int, float)) and p.low <= value <= p.high)
+        if not ok:
+            bounds = list(p.options) if p.is_choice else [p.low, p.high]
+            raise ConfigError(f"{READING}.{name}", value, f"must be in the box {bounds}")
+    return reading
+
+
+
+__all__ = ["READING", "reading_of", "Parameter", "Box", "SET", "SCALE", "LOG", "LINEAR"]

@@ -17,7 +17,6 @@ and, at the end, ``study.csv`` (every job's rows, by sample) and the stage's ana
 
 from __future__ import annotations
 
-import copy
 import logging
 import time
 from pathlib import Path
@@ -29,43 +28,11 @@ from ddmr_cli.storage import io, jobdir
 from ddmr_cli.storage.sweep import read_state
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study import search
-from ddmr_cli.study.design import Design, build, chunk_of
+from ddmr_cli.study.design import chunk_of
+from ddmr_cli.study.setup import STUDY_CSV, STUDY_ROWS, study_setup
 from ddmr_cli.study.space import Box
 
 log = logging.getLogger("ddmr")
-
-STUDY_ROWS = "study_rows.csv"
-STUDY_CSV = "study.csv"
-
-
-def study_configs(cfg: DictConfig) -> dict[tuple[str, str], DictConfig]:
-    """(controller, scenario) -> the job's config with that controller and scenario (no ``study`` node)."""
-    from omegaconf import open_dict
-
-    base = copy.deepcopy(cfg)
-    study = base.study
-    base.study = None
-    with open_dict(base):
-        base.pop("hydra", None)
-    out = {}
-    for c, c_cfg in study.configs.controller.items():
-        for s, s_cfg in study.configs.scenario.items():
-            one = copy.deepcopy(base)
-            one.controller = c_cfg
-            one.scenario = s_cfg
-            out[(str(c), str(s))] = one
-    return out
-
-
-def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
-                ) -> tuple[Box, dict[tuple[str, str], DictConfig], dict[str, Any], Design]:
-    """The box, the per controller and scenario configs, the faithful reading (each parameter read from the first
-    config that has its keys: the NN's from SMC-NDO-NNO's) and the stage's design (``sweep_dir``: the stage's)."""
-    box = Box.from_config(cfg.study)
-    configs = study_configs(cfg)
-    faithful = box.faithful_across(list(configs.values()))
-    return box, configs, faithful, build(cfg.study, box, faithful, sweep_dir)
-
 
 def simulate_sample(box: Box, configs: dict[tuple[str, str], DictConfig], sample: dict, seeds: list[int],
                     threads: int) -> tuple[dict, int, int]:
@@ -200,5 +167,4 @@ def end_stage(config: DictConfig) -> None:
             print("  " + line)
 
 
-__all__ = ["execute_study", "study_setup", "study_configs", "simulate_sample", "sample_row", "collect",
-           "start_stage", "end_stage", "STUDY_ROWS", "STUDY_CSV"]
+__all__ = ["execute_study", "simulate_sample", "sample_row", "collect", "start_stage", "end_stage"]
