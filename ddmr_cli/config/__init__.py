@@ -7,6 +7,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
+from ddmr_cli.compat import check_hydra, config_repository
 from ddmr_cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
 from hydra_plugins.ddmr_sweeper import ddmr_sweeper  # noqa: F401  (registers hydra/sweeper=ddmr, conf/launcher/*.yaml)
 from ddmr_cli.config.build import build_simulation, config_hash, seeds_of
@@ -36,6 +37,7 @@ def _digest(text) -> str:
     return hashlib.sha256(str(text).encode()).hexdigest()[:12]
 
 
+check_hydra()  # the private Hydra APIs of ddmr_cli/compat.py are written for this release
 _register_resolvers()
 
 
@@ -107,7 +109,7 @@ class JobComposer:
             from hydra.core.global_hydra import GlobalHydra
 
             with _initialized():
-                self._groups[key] = GlobalHydra.instance().config_loader().repository.group_exists(key)
+                self._groups[key] = config_repository(GlobalHydra.instance().config_loader()).group_exists(key)
         return self._groups[key]
 
 
@@ -132,7 +134,7 @@ def config_groups() -> list[str]:
     from hydra.core.object_type import ObjectType
 
     with _initialized():
-        repo = GlobalHydra.instance().config_loader().repository  # type: ignore[attr-defined]
+        repo = config_repository(GlobalHydra.instance().config_loader())
         groups = [name for name in repo.get_group_options("", results_filter=ObjectType.GROUP)
                   if name != "hydra" and not name.startswith("_")]
     defaults = [str(d).split(":")[0].split("@")[0].lstrip("/") for d in _defaults_order()]

@@ -23,6 +23,8 @@ from typing import Callable, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 
+from ddmr_cli.compat import config_repository
+
 
 def split_overrides(parsed: Sequence, is_group: Callable[[str], bool]) -> tuple[list, list] | None:
     """``(structure, values)`` of parsed overrides, in their order, or None when the job must compose in full.
@@ -72,12 +74,12 @@ class Skeletons(OverrideParser):
     def job(self, key: tuple[str, ...], compose: Callable[[], DictConfig], values: Sequence) -> DictConfig:
         """A copy of the skeleton ``key`` (``compose()`` makes it the first time) with the value overrides
         applied as Hydra applies them."""
-        from hydra._internal.config_loader_impl import ConfigLoaderImpl
+        from ddmr_cli.compat import apply_overrides
 
         if key not in self._pickled:
             self._pickled[key] = pickle.dumps(compose(), protocol=pickle.HIGHEST_PROTOCOL)
         cfg = pickle.loads(self._pickled[key])
-        ConfigLoaderImpl._apply_overrides_to_config(list(values), cfg)
+        apply_overrides(values, cfg)
         return cfg
 
 
@@ -101,13 +103,14 @@ class SweepConfigLoader:
 
     def _is_group(self, key: str) -> bool:
         if key not in self._groups:
-            self._groups[key] = self.inner.repository.group_exists(key)
+            self._groups[key] = config_repository(self.inner).group_exists(key)
         return self._groups[key]
 
     def load_sweep_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         """The config of one job: Hydra's ``ConfigLoaderImpl.load_sweep_config``, the same config."""
-        from hydra._internal.config_loader_impl import get_overrides_dirname
         from hydra.types import RunMode
+
+        from ddmr_cli.compat import overrides_dirname
 
         overrides = [*OmegaConf.to_container(master_config.hydra.overrides.hydra), *sweep_overrides]
         parsed = self._skeletons.parse(overrides)
@@ -122,8 +125,7 @@ class SweepConfigLoader:
         app = [o for o in parsed if not o.is_hydra_override()]
         cfg.hydra.overrides.task = [o.input_line for o in app]
         dirname = cfg.hydra.job.config.override_dirname
-        cfg.hydra.job.override_dirname = get_overrides_dirname(
-            overrides=app, kv_sep=dirname.kv_sep, item_sep=dirname.item_sep, exclude_keys=dirname.exclude_keys)
+        cfg.hydra.job.override_dirname = overrides_dirname(app, dirname.exclude_keys, dirname.item_sep, dirname.kv_sep)
         OmegaConf.copy_cache(from_config=master_config, to_config=cfg)
         return cfg
 

@@ -16,12 +16,13 @@ from ddmr_cli.storage.sweep import is_hydra_override
 def expand_jobs(overrides: Iterable[str], sweeper_params: dict[str, Any]) -> list[list[str]]:
     """The job override lists Hydra's basic sweeper will launch (sweeper params first, then the command line);
     ``hydra.*`` overrides are not part of a job's overrides (Hydra keeps them apart) and are left out."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from ddmr_cli.compat import split_sweep
 
     params = [f"{k}={v}" for k, v in sweeper_params.items()] + [o for o in overrides if not is_hydra_override(o)]
     parsed = OverridesParser.create().parse_overrides(params)
-    return BasicSweeper.split_arguments(parsed, None)[0]
+    return split_sweep(parsed)
 
 
 def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_sep: str = "=",
@@ -29,11 +30,12 @@ def job_dirname(job_overrides: list[str], exclude_keys, item_sep: str = ",", kv_
     """Hydra's ``hydra.job.override_dirname`` of a job's overrides (made safe by the ``ddmr.jobdir`` resolver of
     the default ``hydra.sweep.subdir``, :func:`ddmr_cli.storage.jobdir.safe_name`); ``parse``: Hydra's override
     parser, or one that remembers the lines it parsed (:class:`~ddmr_cli.config.compose_once.OverrideParser`)."""
-    from hydra._internal.config_loader_impl import get_overrides_dirname
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
+    from ddmr_cli.compat import overrides_dirname
+
     parsed = (parse or OverridesParser.create().parse_overrides)(list(job_overrides))
-    return get_overrides_dirname(parsed, exclude_keys=list(exclude_keys), item_sep=item_sep, kv_sep=kv_sep)
+    return overrides_dirname(parsed, exclude_keys, item_sep, kv_sep)
 
 
 def _subdir(scratch: DictConfig, dirname: str, num: int) -> str:

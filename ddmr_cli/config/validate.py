@@ -155,13 +155,13 @@ def check_target_classes(cfg: DictConfig) -> None:
     controller node a :class:`~ddmr_cli.control.base.WheelController`, ...), not any ``ddmr_cli`` class."""
     import importlib
 
-    from hydra._internal.utils import _locate  # hydra.utils.get_class also logs an error line on failure
+    from ddmr_cli.compat import locate  # hydra.utils.get_class also logs an error line on failure
 
     for path, target in ((p, t) for p, t in _targets(cfg, "") if p != "hydra" and not p.startswith("hydra.")):
         if path not in TARGET_BASES and _study_role(path) not in TARGET_BASES:
             raise ConfigError(f"{path}._target_", target, f"no class is instantiated from {path}")
         try:
-            cls = _locate(str(target))
+            cls = locate(str(target))
         except Exception as exc:  # noqa: BLE001  (Hydra wraps import errors of any kind)
             raise ConfigError(f"{path}._target_", target, f"cannot be imported ({type(exc).__name__})") from None
         module, base = TARGET_BASES[path if path in TARGET_BASES else _study_role(path)]

@@ -36,10 +36,10 @@ class DdmrSweeper(Sweeper):
     plugins, so the class ``BasicSweeper`` names inside its own methods is not the one a subclass was made from."""
 
     def __init__(self, max_batch_size: Optional[int] = None, params: Optional[Dict[str, str]] = None) -> None:
-        from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+        from ddmr_cli.compat import basic_sweeper
 
         super().__init__()
-        self.basic = BasicSweeper(max_batch_size=max_batch_size, params=params)
+        self.basic = basic_sweeper(max_batch_size, params)
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
         from ddmr_cli.config.compose_once import SweepConfigLoader

@@ -1,0 +1,66 @@
+"""Each private-API wrapper of ddmr_cli/compat.py does what the code relies on (an upgrade that breaks one fails
+here, by name), and the version check refuses an unsupported release."""
+
+from __future__ import annotations
+
+import pytest
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from omegaconf import OmegaConf
+
+from ddmr_cli import compat
+from ddmr_cli.errors import DDMRError
+
+
+def parse(*lines):
+    return OverridesParser.create().parse_overrides(list(lines))
+
+
+def test_the_installed_hydra_is_supported_and_others_are_refused():
+    compat.check_hydra()
+    compat.check_hydra("1.3.2")
+    for version in ("1.4.0", "2.0.0.dev1", "1.2.0"):
+        with pytest.raises(DDMRError, match=f"hydra-core {version} is installed"):
+            compat.check_hydra(version)
+
+
+def test_apply_overrides_sets_values_in_struct_mode_as_hydra_does():
+    cfg = OmegaConf.create({"a": {"b": 1, "c": [1, 2]}})
+    OmegaConf.set_struct(cfg, True)
+    compat.apply_overrides(parse("a.b=5", "a.c=[3]", "+a.d=x", "~a.b"), cfg)
+    assert OmegaConf.to_container(cfg) == {"a": {"c": [3], "d": "x"}}
+    with pytest.raises(Exception):  # struct mode: a new key needs +
+        compat.apply_overrides(parse("a.e=1"), cfg)
+
+
+def test_overrides_dirname_is_hydras_job_dirname():
+    name = compat.overrides_dirname(parse("b=2", "a=1", "seed=3"), exclude_keys=["seed"], item_sep=",", kv_sep="=")
+    assert name == "a=1,b=2"
+
+
+def test_split_sweep_is_the_cartesian_product_in_hydras_order():
+    assert compat.split_sweep(parse("a=1,2", "b=x,y")) == [["a=1", "b=x"], ["a=1", "b=y"], ["a=2", "b=x"],
+                                                           ["a=2", "b=y"]]
+
+
+def test_basic_sweeper_is_hydras():
+    sweeper = compat.basic_sweeper(max_batch_size=3, params={"a": "1,2"})
+    assert type(sweeper).__name__ == "BasicSweeper" and sweeper.max_batch_size == 3
+
+
+def test_locate_finds_a_class_and_raises_on_a_missing_one():
+    from ddmr_cli.control.smc import SMC
+
+    assert compat.locate("ddmr_cli.control.smc.SMC") is SMC
+    with pytest.raises(Exception):
+        compat.locate("ddmr_cli.control.smc.NoSuchClass")
+
+
+def test_config_repository_answers_group_questions():
+    from hydra.core.global_hydra import GlobalHydra
+
+    from ddmr_cli.config import _initialized
+
+    with _initialized():
+        repo = compat.config_repository(GlobalHydra.instance().config_loader())
+        assert repo.group_exists("controller") and not repo.group_exists("no_such_group")
+        assert "smc" in repo.get_group_options("controller")
