@@ -192,3 +192,35 @@ def test_imports_inside_functions_are_read(tmp_path):
     module.write_text("def f():\n    from ddmr_cli.cli import main\n    import_module('ddmr_cli.report.build')\n")
     found = imports_of("ddmr_cli.storage.m", module, {"ddmr_cli.cli.main", "ddmr_cli.report.build", "ddmr_cli.cli"})
     assert found == {"ddmr_cli.cli.main", "ddmr_cli.report.build"}
+
+
+def readme_layout() -> dict[str, str]:
+    """The README's Layout section: each listed path (``ddmr_cli/`` entries relative to the package)."""
+    text = ROOT.joinpath("README.md").read_text(encoding="utf-8")
+    block = text.split("## Layout", 1)[1].split("```", 2)[1]
+    entries, inside = {}, False
+    for line in block.splitlines():
+        if not line.strip() or line.startswith(" " * 6):
+            continue
+        name = line.split()[0]
+        if line.startswith("ddmr_cli/"):
+            inside = True
+            continue
+        if not line.startswith(" "):
+            inside = False
+            entries[name] = line
+        elif inside:
+            entries["ddmr_cli/" + name] = line
+    return entries
+
+
+def test_the_readme_layout_lists_exactly_the_packages_and_modules_that_exist():
+    listed = set(readme_layout())
+    package = ROOT / "ddmr_cli"
+    existing = {f"ddmr_cli/{p.name}/" for p in package.iterdir() if p.is_dir() and (p / "__init__.py").is_file()}
+    existing |= {f"ddmr_cli/{p.name}" for p in package.glob("*.py") if p.name != "__init__.py"}
+    assert sorted(existing - listed) == [], "in the package, missing from the README's Layout"
+    assert sorted(e for e in listed if e.startswith("ddmr_cli/") and e not in existing) == [], \
+        "in the README's Layout, not in the package"
+    for top in (e for e in listed if not e.startswith("ddmr_cli/")):
+        assert (ROOT / top).exists(), f"{top} is in the README's Layout but not in the repository"
