@@ -56,7 +56,7 @@ def test_yaml_values_match_model_md():
     assert zones == [("flat", 0.0, 0.1, 0.02), ("very_rough", 5.0, 100.0, 0.10), ("slightly_rough", 10.0, 5.0, 0.05)]
     assert [(p.start, p.roughness, p.uncertainty) for p in build_scenario(cfg.scenario).phases] == [
         (0.0, True, False), (5.0, False, True), (10.0, True, True)]
-    assert tuple(build_scenario(cfg.scenario).uncertainty) == (0.5, 0.4, -0.5, 1.0)
+    assert tuple(build_scenario(cfg.scenario).uncertainty) == (0.5, 0.4, -0.5, 1.0, False)  # the OU form (constant=False)
     assert build_scenario(_compose().scenario) == paper_scenario(1)
 
 

@@ -23,7 +23,7 @@ from nan_after import NaNAfter
 TERRAIN = Terrain(zones=(TerrainZone("flat", 0.0, 0.1, 0.02), TerrainZone("very_rough", 0.15, 100.0, 0.10),
                          TerrainZone("slightly_rough", 0.3, 5.0, 0.05)), correlation_time=0.02)
 SCENARIO = Scenario("short_2", (Phase("terrain", 0.0, True, False), Phase("uncertainty", 0.1, False, True),
-                                Phase("both", 0.25, True, True)), DampingUncertainty(0.5, 0.4, -0.5, 1.0),
+                                Phase("both", 0.25, True, True)), DampingUncertainty(0.5, 0.4, -0.5, 1.0, False),
                     phase_clock="distance")
 SEEDS = list(range(8))
 K = 5

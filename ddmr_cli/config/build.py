@@ -9,12 +9,13 @@ from typing import Any
 from hydra.errors import InstantiationException
 from omegaconf import DictConfig, OmegaConf
 
+from ddmr_cli.checks import one_of
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.model.actuator import Actuator
 from ddmr_cli.model.robot import Robot
 from ddmr_cli.model.sensor import Sensor
-from ddmr_cli.model.scenario import DampingUncertainty, Phase, Scenario
+from ddmr_cli.model.scenario import UNCERTAINTY_FORMS, DampingUncertainty, Phase, Scenario
 from ddmr_cli.engine.simulation import Simulation
 from ddmr_cli.model.terrain import Terrain, TerrainZone
 
@@ -59,7 +60,8 @@ def build_scenario(cfg: DictConfig) -> Scenario:
     return Scenario(
         name=str(cfg.name),
         phases=tuple(Phase(str(name), float(p.start), bool(p.roughness), bool(p.uncertainty)) for name, p in phases),
-        uncertainty=DampingUncertainty(float(u.correlation_time), float(u.std), float(u.low), float(u.high)),
+        uncertainty=DampingUncertainty(float(u.correlation_time), float(u.std), float(u.low), float(u.high),
+                                       one_of("scenario.uncertainty.form", str(u.form), UNCERTAINTY_FORMS) == "constant"),
         phase_clock=str(cfg.phase_clock),
     )
 

@@ -96,6 +96,9 @@ class UncertaintyConfig:
     low: float = param(unit="1", help="lower clip of delta(t)", range="> -1 (the true damping stays positive)",
                        model=5)
     high: float = param(unit="1", help="upper clip of delta(t)", range="> scenario.uncertainty.low", model=5)
+    form: str = param(unit="", help="ou: delta(t) an OU process in time; constant: one value per run from the same "
+                      "stationary law, held (a fixed unknown parameter; correlation_time unused)",
+                      range="ou, constant", model=5)
 
 
 @dataclass

@@ -217,8 +217,9 @@ def _each(pool: ThreadPoolExecutor | None, fn: Callable, parts: list) -> None:
 def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, phase_base: int,
            bands: BandAccumulator | None) -> World:
     dt = float(sim.dt)
-    coefficients = [ou_coefficients(dt, tc) for tc in
-                    (sim.terrain.correlation_time, sim.terrain.correlation_time, sim.scenario.uncertainty.correlation_time)]
+    uncertainty = sim.scenario.uncertainty
+    coefficients = [ou_coefficients(dt, sim.terrain.correlation_time)] * 2 + [
+        (1.0, 0.0) if uncertainty.constant else ou_coefficients(dt, uncertainty.correlation_time)]  # §5
     phases = sim.scenario.phases
     return World(
         reference=reference_table(sim.trajectory, n_steps, dt),

@@ -20,6 +20,10 @@ from ddmr_cli.errors import ConfigError
 
 #: What a phase's ``start`` is measured along: the distance travelled [m] or time [s].
 PHASE_CLOCKS = ("distance", "time")
+#: The form of scenario 2's uncertainty delta (docs/model.md §5): ``ou``, a stationary OU process in time (our
+#: reading); ``constant``, one value per run drawn from the same stationary law and held (a fixed unknown
+#: parameter, the classic reading of "parametric uncertainty"; the OU process with an infinite correlation time)
+UNCERTAINTY_FORMS = ("ou", "constant")
 
 
 @dataclass(frozen=True)
@@ -43,12 +47,16 @@ class DampingUncertainty(NamedTuple):
         Stationary standard deviation.
     low, high : float
         Clip bounds of delta (the paper's reading: -0.5, 1.0, so ``B_true`` stays in ``[0.5, 2] B_nom``).
+    constant : bool
+        The ``constant`` form (:data:`UNCERTAINTY_FORMS`): delta drawn once per run and held; ``correlation_time``
+        is then unused.
     """
 
     correlation_time: float
     std: float
     low: float
     high: float
+    constant: bool
 
 
 @dataclass(frozen=True)
