@@ -15,7 +15,9 @@ from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
 from ddmr_cli.report import realism
 from ddmr_cli.report import verdicts as V
-from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
+from ddmr_cli.paper import PAPER_SCENARIO
+from ddmr_cli.paper import numbers as paper_numbers
+from ddmr_cli.report.data import Job, ReportData, flatten, load
 from ddmr_cli.report.figures import common_seed, make_figures
 from ddmr_cli.report.plotting import OKABE_ITO, StyleBook, label_of
 from ddmr_cli.report.stats import Margin

@@ -9,12 +9,12 @@ from __future__ import annotations
 import json
 import shlex
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ddmr_cli.cli import io
 from ddmr_cli.errors import DDMRError
+from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.report.plotting import label_of
 
 if TYPE_CHECKING:
@@ -24,19 +24,11 @@ if TYPE_CHECKING:
 #: Controllers in the paper's order (then any other, alphabetically).
 CONTROLLER_ORDER = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text", "smc_nno", "sta", "sta_ndo", "adrc",
                     "adaptive_smc", "adaptive_smc_ndo", "open_loop")
-#: The scenario the paper's Table 4 is compared against (the paper does not say which one it is).
-PAPER_SCENARIO = "paper_1"
 #: The paper's reference. A job on another one (``trajectory=circle``) is reported under the scenario
 #: ``<scenario>@<trajectory>`` (``paper_1@circle``): the reference is part of the scenario axis.
 PAPER_TRAJECTORY = "line"
 #: Override keys that do not tell two jobs apart (launcher, output dirs, plotting).
 _IGNORED_KEYS = ("experiment", "launcher", "cluster", "run.plots", "run.progress")
-
-
-def paper_numbers() -> dict:
-    """The paper's published numbers, shipped as ``ddmr_cli/data/paper_numbers.json``."""
-    text = resources.files("ddmr_cli.data").joinpath("paper_numbers.json").read_text(encoding="utf-8")
-    return json.loads(text)
 
 
 def _override_key(override: str) -> str:

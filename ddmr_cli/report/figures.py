@@ -23,7 +23,8 @@ import numpy as np
 from ddmr_cli.cli import io
 from ddmr_cli.cli.jobdir import safe_name  # a scenario name as one path component (issue 26)
 from ddmr_cli.report import signals as S
-from ddmr_cli.report.data import Job, ReportData, flatten, paper_numbers
+from ddmr_cli.paper import numbers as paper_numbers
+from ddmr_cli.report.data import Job, ReportData, flatten
 from ddmr_cli.report.tables import fmt
 from ddmr_cli.report.plotting import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, pyplot, save,
                                       thin)
