@@ -20,6 +20,7 @@ from ddmr_cli.report.plotting import OKABE_ITO, pyplot, save
 from ddmr_cli.report.tables import md_table
 from ddmr_cli.study import analysis
 from ddmr_cli.study.claims import CLAIM_IDS, bounds, claims, rule
+from ddmr_cli.study.stages import STAGES
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -49,7 +50,7 @@ def _study_config(stage_dir: Path):
 def _box_and_faithful(out: Path):
     from ddmr_cli.study.task import study_setup
 
-    for stage in ("oat", "morris", "lhs", "calibration", "sobol", "map", "points"):
+    for stage in STAGES:
         cfg = _study_config(out / stage)
         if cfg is not None:
             box, _, faithful, _ = study_setup(cfg, out / stage)
@@ -243,8 +244,7 @@ def write_report(out: Path) -> Path:
     out = Path(out)
     fig_dir = out / FIGURES
     box, faithful = _box_and_faithful(out)
-    stage = {s: _read_csv(out / s / "study.csv") for s in ("oat", "morris", "sobol", "map", "lhs", "calibration",
-                                                            "points")}
+    stage = {s: _read_csv(out / s / "study.csv") for s in STAGES}
     morris = _read_csv(out / "morris" / analysis.MORRIS_CSV)
     sobol = _read_csv(out / "sobol" / analysis.SOBOL_CSV)
     holds = _read_csv(out / "lhs" / analysis.HOLDS_CSV)
