@@ -797,7 +797,7 @@ def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = Non
                  ) -> tuple[dict[str, list[Figure]], list[str]]:
     """All figures, per scenario (in forked processes when the machine has several cores); returns them and
     notes on what was skipped."""
-    styles = styles or StyleBook(j.controller for j in data.jobs)
+    styles = styles or StyleBook((j.controller for j in data.jobs), data.displays())
     tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
     for scenario in data.scenarios:  # read the series (and bands) once, before any fork
         ScenarioFigures(data, scenario, out_dir, styles)
