@@ -185,7 +185,7 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
     result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
                       bands=bool(cfg.run.bands))
-    io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg)))
+    io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
     if result.bands:

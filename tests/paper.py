@@ -14,6 +14,7 @@ from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, RBFNetworkObserver
 def _values(option: str, node: str = "controller") -> dict:
     values = OmegaConf.to_container(paper_config(option)[node], resolve=True)
     values.pop("_target_", None)
+    values.pop("display", None)  # the report's label and style, not a constructor argument
     return values
 
 

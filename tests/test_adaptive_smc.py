@@ -22,6 +22,7 @@ def make(**values) -> AdaptiveSMC:
     """conf/controller/adaptive_smc.yaml with ``values`` replaced."""
     cfg = OmegaConf.to_container(paper_config("controller=adaptive_smc").controller, resolve=True)
     cfg.pop("_target_")
+    cfg.pop("display")
     return AdaptiveSMC(**{**cfg, **values})
 
 

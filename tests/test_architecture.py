@@ -27,7 +27,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("ddmr_cli.job", "ddmr_cli.bench"),          # one job into its dir; benchmarks
     ("ddmr_cli.plots",),                         # figure primitives and a job's plots
     ("ddmr_cli.config",),                        # Hydra composition, schemas, validation, the sweep plan
-    ("ddmr_cli.storage",),                       # atomic writes, job dirs, locks, sweep state and tables
+    ("ddmr_cli.storage", "ddmr_cli.paper"),     # atomic writes, job dirs, locks, sweep state and tables; the paper
     ("ddmr_cli.engine",),                        # the step loop, metrics, results
     ("ddmr_cli.plant",),                         # the plants the engine steps
     ("ddmr_cli.control",),                       # the control laws

@@ -79,7 +79,7 @@ def test_defaults_live_only_in_the_yaml(node_type):
     """The schema marks every value required (MISSING); only a class's _target_ and an absent observer (None)
     are structure. The YAML under conf/ is the one place a default lives."""
     for key, f in _leaf_fields(node_type):
-        if key == "_target_" or key in ("ndo", "nn"):
+        if key == "_target_" or key in ("ndo", "nn", "display"):
             continue
         if f.default_factory is dataclasses.MISSING:
             assert f.default == MISSING, f"{node_type.__name__}.{key} has a default in the schema"

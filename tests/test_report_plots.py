@@ -16,33 +16,35 @@ from ddmr_cli.report import signals as S
 
 # --- styles ------------------------------------------------------------------------------------------------------
 BASELINES = ("sta", "sta_ndo", "adrc", "adaptive_smc", "adaptive_smc_ndo")
+#: the packaged controllers' styles (their conf/controller/*.yaml display nodes)
+KNOWN = P.known_styles()
 
 
 def test_known_controllers_differ_in_colour_and_dash():
     """The paper's controllers (and the other pre-existing ones) differ in colour and in dash; with the baselines
     (12 built-in controllers, 8 colours) every two still differ in their (colour, dash) pair, not by a marker only."""
-    paper = [s for c, s in P.KNOWN_STYLES.items() if c not in BASELINES]
+    paper = [s for c, s in KNOWN.items() if c not in BASELINES]
     assert len({s.color for s in paper}) == len(paper) and len({s.dash for s in paper}) == len(paper)
-    styles = list(P.KNOWN_STYLES.values())
-    assert set(BASELINES) <= set(P.KNOWN_STYLES)
+    styles = list(KNOWN.values())
+    assert set(BASELINES) <= set(KNOWN)
     assert len({(s.color, s.dash) for s in styles}) == len(styles) >= 12
     assert set(s.color for s in styles) <= set(P.OKABE_ITO.values())
-    assert P.KNOWN_STYLES["smc_ndo_nno"].color == "#000000" and P.KNOWN_STYLES["smc_ndo_nno"].dash == "solid"
+    assert KNOWN["smc_ndo_nno"].color == "#000000" and KNOWN["smc_ndo_nno"].dash == "solid"
 
 
 def test_style_book_gives_every_controller_its_own_style():
     unknown = ["twisting", "mpc", "computed_torque"] + [f"ctrl{i}" for i in range(60)]
-    book = P.StyleBook(list(P.KNOWN_STYLES) + unknown)
-    styles = [book[c] for c in list(P.KNOWN_STYLES) + unknown]
+    book = P.StyleBook(list(KNOWN) + unknown)
+    styles = [book[c] for c in list(KNOWN) + unknown]
     assert len(set(styles)) == len(styles)                          # no two controllers alike
-    assert all(book[c] == P.KNOWN_STYLES[c] for c in P.KNOWN_STYLES)  # the paper's keep theirs
+    assert all(book[c] == KNOWN[c] for c in KNOWN)  # the paper's keep theirs
     # the same controller gets the same style in another report without a clash, whatever the order
     assert P.StyleBook(["mpc", "twisting"])["twisting"] == P.StyleBook(["twisting"])["twisting"]
     assert P.StyleBook(reversed(unknown))["ctrl7"] == book["ctrl7"]
 
 
 def test_style_kwargs_mark_variants():
-    s = P.KNOWN_STYLES["smc"]
+    s = KNOWN["smc"]
     assert "marker" not in s.kwargs(0) and s.kwargs(0)["color"] == s.color
     assert s.kwargs(1)["marker"] != s.kwargs(2)["marker"]
 

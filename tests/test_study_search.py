@@ -121,8 +121,8 @@ def test_the_warm_start_is_the_uniform_samples_best():
 
 
 def test_the_global_analyses_take_bounded_statistics_and_impute_nothing():
-    rows = pd.DataFrame({"nno_vs_ndo": [30.0, -1.0e4, np.nan, 250.0, -50.0, -np.inf]})
-    y, undefined, clipped = analysis.outputs(rows, "nno_vs_ndo")
+    rows = pd.DataFrame({"vs_smc_ndo": [30.0, -1.0e4, np.nan, 250.0, -50.0, -np.inf]})
+    y, undefined, clipped = analysis.outputs(rows, "vs_smc_ndo")
     assert undefined == 1 and clipped == 3
     # -inf (the candidate diverged) and NaN (no defined statistic) are a claim that cannot hold: -100 %, not a
     # median of the others (which was -10 here and made a diverged sample look like an ordinary one)

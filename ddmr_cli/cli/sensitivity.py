@@ -18,7 +18,8 @@ import time
 from pathlib import Path
 from typing import Sequence
 
-STAGES = ("oat", "morris", "sobol", "map", "lhs", "calibration", "points")
+from ddmr_cli.study.stages import STAGES
+
 SUMMARY = "study_summary.json"
 
 

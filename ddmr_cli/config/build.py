@@ -18,6 +18,7 @@ from ddmr_cli.model.sensor import Sensor
 from ddmr_cli.model.scenario import UNCERTAINTY_FORMS, DampingUncertainty, Phase, Scenario
 from ddmr_cli.engine.simulation import Simulation
 from ddmr_cli.model.terrain import Terrain, TerrainZone
+from ddmr_cli.config.display import DISPLAY
 
 #: Only the project's own classes may be instantiated from a config.
 ALLOWED_TARGET_PREFIX = "ddmr_cli."
@@ -37,10 +38,13 @@ def check_targets(node: Any, path: str) -> None:
 
 
 def instantiate_checked(node: DictConfig, path: str):
-    """``hydra.utils.instantiate`` restricted to the project's own classes."""
+    """``hydra.utils.instantiate`` restricted to the project's own classes; a controller's ``display`` node (the
+    report's label and style) is not the constructor's."""
     from hydra.utils import instantiate
 
     check_targets(node, path)
+    if DISPLAY in node.keys():
+        node = OmegaConf.masked_copy(node, [k for k in node.keys() if k != DISPLAY])
     return instantiate(node, _convert_="all")
 
 
@@ -109,10 +113,13 @@ def seeds_of(cfg: DictConfig) -> list[int]:
     return list(range(int(cfg.run.base_seed), int(cfg.run.base_seed) + int(cfg.run.n_runs)))
 
 
-def result_config(cfg: DictConfig) -> dict:
-    """The part of the resolved config that determines the numbers (no hydra node, no display keys)."""
+def result_config(cfg: DictConfig, display: bool = False) -> dict:
+    """The part of the resolved config that determines the numbers (no hydra node, no display keys; with
+    ``display`` the controllers' ``display`` nodes are kept, for the job's saved config the report reads)."""
     container = OmegaConf.to_container(cfg, resolve=True)
     container.pop("hydra", None)
+    if not display:
+        _drop_display(container)
     for dotted in NON_RESULT_KEYS:
         node, *rest = dotted.split(".")
         if rest:
@@ -120,6 +127,16 @@ def result_config(cfg: DictConfig) -> dict:
         else:
             container.pop(node, None)
     return container
+
+
+def _drop_display(node) -> None:
+    """Remove every controller's ``display`` node (label and style only: not the numbers), at any depth (the
+    sensitivity study's ``study.configs.controller.*``)."""
+    if isinstance(node, dict):
+        if "_target_" in node:
+            node.pop(DISPLAY, None)
+        for value in node.values():
+            _drop_display(value)
 
 
 def config_hash(cfg: DictConfig) -> str:

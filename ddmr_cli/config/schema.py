@@ -14,6 +14,8 @@ from typing import Any, Callable, Dict, List, Optional
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from ddmr_cli.config.display import RULES as DISPLAY_RULES
+
 
 def param(default: Any = MISSING, *, unit: str, help: str, range: str = "", model: int | None = None,
           paper: str = "", factory: Callable[[], Any] | None = None, entries: dict | None = None) -> Any:
@@ -137,6 +139,22 @@ class NNConfig:
 
 
 @dataclass
+class DisplayConfig:
+    """How the report shows a controller (ddmr_cli/report/display.py); every key optional (null: the report's
+    default: the name, a free style, after the ranked controllers). Not passed to the controller, not hashed."""
+
+    label: Optional[str] = param(None, unit="", help="label in tables and figures", range=DISPLAY_RULES["label"])
+    colour: Optional[str] = param(None, unit="", help="line colour", range=DISPLAY_RULES["colour"])
+    dash: Optional[str] = param(None, unit="", help="dash pattern", range=DISPLAY_RULES["dash"])
+    marker: Optional[str] = param(None, unit="", help="marker on the line", range=DISPLAY_RULES["marker"])
+    width: Optional[float] = param(None, unit="pt", help="line width", range=DISPLAY_RULES["width"])
+    rank: Optional[int] = param(None, unit="1", help="order in tables and figures", range=DISPLAY_RULES["rank"])
+
+
+DISPLAY_HELP = "how the report shows the controller: label, colour, dash, marker, width, rank (null: its defaults)"
+
+
+@dataclass
 class PIDConfig:
     _target_: str = param("ddmr_cli.control.PID", unit="", help=TARGET_HELP, model=6)
     kp: Any = param(unit="V s/rad", help="proportional gain K_p on the wheel-speed error e = w_d - w",
@@ -149,6 +167,7 @@ class PIDConfig:
                     paper="Table 3")
     anti_windup: bool = param(unit="", help="clamp the integrator while the voltage is saturated",
                               range="true | false", model=6)
+    display: Optional[DisplayConfig] = param(None, unit="", help=DISPLAY_HELP)
 
 
 @dataclass
@@ -171,6 +190,7 @@ class SMCConfig:
                                      paper="3.2")
     nn: Optional[NNConfig] = param(None, unit="", help="RBF neural-network observer (null: none)", model=6,
                                    paper="3.3")
+    display: Optional[DisplayConfig] = param(None, unit="", help=DISPLAY_HELP)
 
 
 @dataclass
@@ -202,6 +222,7 @@ class STAConfig:
                               "sign(s) pushes further in", range="true | false", model=6)
     ndo: Optional[NDOConfig] = param(None, unit="", help="nonlinear disturbance observer (null: none)", model=6,
                                      paper="3.2")
+    display: Optional[DisplayConfig] = param(None, unit="", help=DISPLAY_HELP)
 
 
 @dataclass
@@ -212,6 +233,7 @@ class ADRCConfig:
                              range="> 0; dt * w_c below the integrator's stability limit", model=6)
     observer_bandwidth: float = param(unit="1/s", help="ESO bandwidth w_o (double observer pole at -w_o)",
                                       range="> 0; dt * w_o < 2 (Euler ESO); 3-10 x bandwidth advised", model=6)
+    display: Optional[DisplayConfig] = param(None, unit="", help=DISPLAY_HELP)
 
 
 @dataclass
@@ -219,6 +241,7 @@ class OpenLoopConfig:
     _target_: str = param("ddmr_cli.control.OpenLoop", unit="", help=TARGET_HELP, model=6)
     voltage: Any = param(unit="V", help="constant voltage, no feedback (plant checks)",
                          range=f"finite; {PER_WHEEL}", model=6)
+    display: Optional[DisplayConfig] = param(None, unit="", help=DISPLAY_HELP)
 
 
 @dataclass

@@ -29,6 +29,7 @@ from ddmr_cli.checks import integer, positive
 from ddmr_cli.config import budget
 from ddmr_cli.config.build import build_simulation, check_targets
 from ddmr_cli.errors import ConfigError
+from ddmr_cli.config import display
 
 #: the forms of run.keep_series
 KEEP_FORMS = "a list of seeds, first:N (the job's first N seeds), all or none"
@@ -290,6 +291,7 @@ def validate_config(cfg: DictConfig):
     check_targets(cfg.get("controller"), "controller")
     check_targets(cfg.get("trajectory"), "trajectory")
     check_target_classes(cfg)
+    display.check(OmegaConf.to_container(cfg.controller, resolve=True).get(display.DISPLAY))
     validate_cluster(cfg.get("cluster"))
     kept = validate_run(cfg.run)
     sim = build_simulation(cfg)

@@ -1,10 +1,10 @@
 """What every figure shares: the controllers' styles, matplotlib on Agg, decimation and saving.
 
 Styles: the Okabe-Ito palette (distinguishable with the common colour-vision deficiencies) and a distinct line
-style per controller, so two controllers differ in colour *and* dash pattern. The paper's controllers have fixed
-styles (SMC-NDO-NNO solid black and SMC-NDO dashed green as in the paper's Figs. 8 and 13); any other controller
-gets a free (colour, dash, marker) combination, preferring one derived from its name so it keeps its style from
-report to report. A :class:`StyleBook` built from all the controllers of a report gives each a style no other
+style per controller, so two controllers differ in colour *and* dash pattern. Each packaged controller's style is
+its YAML's ``display`` node (:mod:`.display`; SMC-NDO-NNO solid black and SMC-NDO dashed green as in the paper's
+Figs. 8 and 13); any other controller gets a free (colour, dash, marker) combination, preferring one derived from
+its name so it keeps its style from report to report. A :class:`StyleBook` built from all the controllers of a report gives each a style no other
 controller of that report has, whatever their number.
 """
 
@@ -15,30 +15,21 @@ import math
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import numpy as np
 
 from ddmr_cli.storage.io import atomic_write
+from ddmr_cli.config import display
+from ddmr_cli.config.display import DASHES, MARKERS, Display
 
 #: Okabe & Ito (2008), "Color universal design": eight colours told apart with every common colour-vision deficiency.
 OKABE_ITO = {
     "black": "#000000", "orange": "#E69F00", "sky_blue": "#56B4E9", "bluish_green": "#009E73",
     "blue": "#0072B2", "vermillion": "#D55E00", "reddish_purple": "#CC79A7", "yellow": "#F0E442",
 }
-#: Dash patterns (matplotlib on/off sequences), told apart even on a noisy line.
-DASHES = {
-    "solid": "-", "dashed": (0, (5, 2)), "dotted": (0, (1, 1.4)), "dashdot": (0, (6, 2, 1.2, 2)),
-    "long": (0, (11, 3)), "dashdotdot": (0, (6, 2, 1.2, 2, 1.2, 2)), "sparse": (0, (2, 4)),
-}
-MARKERS = (None, "o", "s", "^", "D", "v", "x", "P")
 #: Grey dashed: the reference path and the true disturbance (as the paper draws them).
 REFERENCE_STYLE = {"color": "0.45", "ls": (0, (5, 2.5)), "lw": 1.3}
-
-CONTROLLER_LABELS = {"pid": "PID", "smc": "SMC", "smc_ndo": "SMC-NDO", "smc_ndo_nno": "SMC-NDO-NNO",
-                     "smc_ndo_nno_text": "SMC-NDO-NNO (text reading)", "smc_nno": "SMC-NNO",
-                     "open_loop": "open loop", "sta": "STA", "sta_ndo": "STA-NDO", "adrc": "ADRC",
-                     "adaptive_smc": "Adaptive SMC", "adaptive_smc_ndo": "Adaptive SMC-NDO"}
 
 DPI = 110
 MAX_POINTS = 5000
@@ -60,54 +51,56 @@ class Style:
         return kw
 
 
-#: The paper's controllers (and the other built-in ones): fixed, pairwise distinct in colour and in dash.
-KNOWN_STYLES = {
-    "smc_ndo_nno": Style(OKABE_ITO["black"], "solid", width=1.5),
-    "smc_ndo": Style(OKABE_ITO["bluish_green"], "dashed", width=1.3),
-    "smc": Style(OKABE_ITO["blue"], "dashdot"),
-    "pid": Style(OKABE_ITO["vermillion"], "dotted", width=1.3),
-    "smc_ndo_nno_text": Style(OKABE_ITO["reddish_purple"], "long", width=1.3),
-    "smc_nno": Style(OKABE_ITO["sky_blue"], "dashdotdot"),
-    "open_loop": Style(OKABE_ITO["orange"], "sparse"),
-    # the baselines of issue 15: a (colour, dash) pair no other built-in controller has, plus a marker
-    "sta": Style(OKABE_ITO["orange"], "dotted", "v"),
-    "sta_ndo": Style(OKABE_ITO["orange"], "dashdot", "^", width=1.3),
-    "adrc": Style(OKABE_ITO["reddish_purple"], "dashed", "s", width=1.3),
-    "adaptive_smc": Style(OKABE_ITO["blue"], "dashdotdot", "o"),
-    "adaptive_smc_ndo": Style(OKABE_ITO["sky_blue"], "long", "D", width=1.3),
-}
+def known_styles(displays: Mapping[str, Display] | None = None) -> dict[str, Style]:
+    """The style of every controller whose display sets a colour and a dash: the packaged controllers' (their
+    ``conf/controller/*.yaml``), then ``displays`` (a report's, from its jobs' configs) over them."""
+    out = {}
+    for d in [display.of(n) for n in display.packaged_all()] + list((displays or {}).values()):
+        if d.colour and d.dash:
+            out[d.name] = Style(d.colour, d.dash, d.marker, d.width or display.WIDTH)
+        else:
+            out.pop(d.name, None)
+    return out
 
 
-def _free_combinations() -> list[Style]:
+def _free_combinations(known: Iterable[Style]) -> list[Style]:
     """Every (colour, dash, marker) not taken by a known controller, in a fixed order (yellow last: it is faint)."""
-    taken = {(s.color, s.dash, s.marker) for s in KNOWN_STYLES.values()}
+    taken = {(s.color, s.dash, s.marker) for s in known}
     return [Style(c, d, m) for m, c, d in itertools.product(MARKERS, OKABE_ITO.values(), DASHES)
             if (c, d, m) not in taken]
 
 
-_FREE = _free_combinations()
-
-
 class StyleBook:
-    """One style per controller, distinct within the book: known controllers keep theirs; any other takes the
-    free combination its name hashes to, or the next free one (so the style is stable while there is no clash).
-    Past ``len(_FREE)`` unknown controllers the combinations repeat (more than 400 controllers in one figure)."""
+    """One style per controller, distinct within the book: a controller whose display sets its colour and dash
+    (:func:`known_styles`) keeps its style; any other takes the free combination its name hashes to, or the next
+    free one (so the style is stable while there is no clash), in its display's colour when it sets one. Past
+    ``len(free)`` such controllers the combinations repeat (more than 400 controllers in one figure)."""
 
-    def __init__(self, controllers: Iterable[str] = ()):
+    def __init__(self, controllers: Iterable[str] = (), displays: Mapping[str, Display] | None = None):
         self._styles: dict[str, Style] = {}
-        for c in sorted(set(controllers), key=lambda c: (c not in KNOWN_STYLES, c)):
+        self._known = known_styles(displays)
+        self._displays = dict(displays or {})
+        self._free = _free_combinations(self._known.values())
+        for c in sorted(set(controllers), key=lambda c: (c not in self._known, c)):
             self.add(c)
 
     def add(self, controller: str) -> Style:
         if controller in self._styles:
             return self._styles[controller]
-        if controller in KNOWN_STYLES:
-            style = KNOWN_STYLES[controller]
+        if controller in self._known:
+            style = self._known[controller]
         else:
             used = set(self._styles.values())
-            start = zlib.crc32(controller.encode()) % len(_FREE)
-            free = [s for s in _FREE[start:] + _FREE[:start] if s not in used]
-            style = free[0] if free else _FREE[start]
+            start = zlib.crc32(controller.encode()) % len(self._free)
+            shown = self._displays.get(controller)
+            colour = shown.colour if shown is not None else None
+            free = [s for s in self._free[start:] + self._free[:start]
+                    if s not in used and (colour is None or s.color == colour)]
+            style = free[0] if free else self._free[start]
+            if colour is not None and style.color != colour:
+                style = Style(colour, style.dash, style.marker)
+            if shown is not None and shown.width:
+                style = Style(style.color, style.dash, style.marker, shown.width)
         self._styles[controller] = style
         return style
 
@@ -116,7 +109,8 @@ class StyleBook:
 
 
 def label_of(controller: str) -> str:
-    return CONTROLLER_LABELS.get(controller, controller)
+    """The label of a controller known by name (its packaged YAML's ``display.label``; else its name)."""
+    return display.label(controller)
 
 
 #: The report's font sizes and line simplification.

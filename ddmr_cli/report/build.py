@@ -15,9 +15,11 @@ from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
 from ddmr_cli.report import realism
 from ddmr_cli.report import verdicts as V
-from ddmr_cli.report.data import PAPER_SCENARIO, Job, ReportData, flatten, load, paper_numbers
+from ddmr_cli.paper import PAPER_SCENARIO
+from ddmr_cli.paper import numbers as paper_numbers
+from ddmr_cli.report.data import Job, ReportData, flatten, load
 from ddmr_cli.report.figures import common_seed, make_figures
-from ddmr_cli.plots.common import OKABE_ITO, StyleBook, label_of
+from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
 #: Settings shown in the configuration section (dotted config keys).
@@ -59,7 +61,7 @@ class Report:
         self.data, self.out, self.margin = data, out, margin or Margin()
         self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
-        self.styles = StyleBook(j.controller for j in data.jobs)
+        self.styles = StyleBook((j.controller for j in data.jobs), data.displays())
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
         self.csvs: list[tuple[str, Path]] = []
@@ -362,7 +364,8 @@ class Report:
         figures, notes = make_figures(self.data, self.figures_dir, self.styles)
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
-        legend = "; ".join(f"{label_of(c)} {names.get(self.styles[c].color, self.styles[c].color)} "
+        shown = self.data.displays()
+        legend = "; ".join(f"{shown[c].label} {names.get(self.styles[c].color, self.styles[c].color)} "
                            f"{self.styles[c].dash}" + (f" with {self.styles[c].marker} markers"
                                                         if self.styles[c].marker else "") for c in present)
         self.add("## Figures", "",

@@ -9,34 +9,24 @@ from __future__ import annotations
 import json
 import shlex
 from dataclasses import dataclass, field
-from importlib import resources
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ddmr_cli.storage import io
 from ddmr_cli.errors import DDMRError
-from ddmr_cli.plots.common import label_of
+from ddmr_cli.paper import PAPER_SCENARIO
+from ddmr_cli.config import display
 
 if TYPE_CHECKING:
     import numpy as np
     import pandas as pd
 
-#: Controllers in the paper's order (then any other, alphabetically).
-CONTROLLER_ORDER = ("pid", "smc", "smc_ndo", "smc_ndo_nno", "smc_ndo_nno_text", "smc_nno", "sta", "sta_ndo", "adrc",
-                    "adaptive_smc", "adaptive_smc_ndo", "open_loop")
-#: The scenario the paper's Table 4 is compared against (the paper does not say which one it is).
-PAPER_SCENARIO = "paper_1"
 #: The paper's reference. A job on another one (``trajectory=circle``) is reported under the scenario
 #: ``<scenario>@<trajectory>`` (``paper_1@circle``): the reference is part of the scenario axis.
 PAPER_TRAJECTORY = "line"
 #: Override keys that do not tell two jobs apart (launcher, output dirs, plotting).
 _IGNORED_KEYS = ("experiment", "launcher", "cluster", "run.plots", "run.progress")
-
-
-def paper_numbers() -> dict:
-    """The paper's published numbers, shipped as ``ddmr_cli/data/paper_numbers.json``."""
-    text = resources.files("ddmr_cli.data").joinpath("paper_numbers.json").read_text(encoding="utf-8")
-    return json.loads(text)
 
 
 def _override_key(override: str) -> str:
@@ -88,8 +78,13 @@ class Job:
 
     @property
     def label(self) -> str:
-        base = label_of(self.controller)
+        base = self.display.label
         return f"{base} ({', '.join(self.extra)})" if self.extra else base
+
+    @cached_property
+    def display(self) -> display.Display:
+        """The controller's label, style and rank, from the job's saved config (:mod:`ddmr_cli.config.display`)."""
+        return display.of_job(self.controller, self.config)
 
     @property
     def overrides(self) -> list[str]:
@@ -103,9 +98,10 @@ class Job:
         return flatten(self.config).get(dotted, default)
 
 
-def controller_rank(controller: str) -> tuple[int, str]:
-    return (CONTROLLER_ORDER.index(controller), "") if controller in CONTROLLER_ORDER else (len(CONTROLLER_ORDER),
-                                                                                          controller)
+def controller_rank(controller: str) -> tuple[float, str]:
+    """Sort key of a controller known by name: its packaged ``display.rank`` (after the ranked ones when it has
+    none), then its name."""
+    return display.rank(controller)
 
 
 @dataclass
@@ -155,13 +151,20 @@ class ReportData:
         for j in self.jobs:
             if scenario is None or j.scenario == scenario:
                 seen.setdefault(j.key, j)
-        return sorted(seen, key=lambda k: (controller_rank(seen[k].controller), seen[k].variant, k))
+        return sorted(seen, key=lambda k: (seen[k].display.order, seen[k].variant, k))
 
     def job(self, scenario: str, key: str) -> Job | None:
         return next((j for j in self.jobs if j.scenario == scenario and j.key == key), None)
 
     def label(self, key: str) -> str:
         return next(j.label for j in self.jobs if j.key == key)
+
+    def displays(self) -> dict[str, display.Display]:
+        """Per controller, its display (label, style, rank) from its first job's config."""
+        out: dict[str, display.Display] = {}
+        for j in self.jobs:
+            out.setdefault(j.controller, j.display)
+        return out
 
     def controller_of(self, key: str) -> str:
         return next(j.controller for j in self.jobs if j.key == key)

@@ -23,7 +23,8 @@ import numpy as np
 from ddmr_cli.storage import io
 from ddmr_cli.storage.jobdir import safe_name  # a scenario name as one path component (issue 26)
 from ddmr_cli.report import signals as S
-from ddmr_cli.report.data import Job, ReportData, flatten, paper_numbers
+from ddmr_cli.paper import numbers as paper_numbers
+from ddmr_cli.report.data import Job, ReportData, flatten
 from ddmr_cli.report.tables import fmt
 from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, pyplot, save,
                                       thin)
@@ -796,7 +797,7 @@ def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = Non
                  ) -> tuple[dict[str, list[Figure]], list[str]]:
     """All figures, per scenario (in forked processes when the machine has several cores); returns them and
     notes on what was skipped."""
-    styles = styles or StyleBook(j.controller for j in data.jobs)
+    styles = styles or StyleBook((j.controller for j in data.jobs), data.displays())
     tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
     for scenario in data.scenarios:  # read the series (and bands) once, before any fork
         ScenarioFigures(data, scenario, out_dir, styles)

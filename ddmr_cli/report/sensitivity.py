@@ -19,7 +19,8 @@ from ddmr_cli.storage import io
 from ddmr_cli.plots.common import OKABE_ITO, pyplot, save
 from ddmr_cli.report.tables import md_table
 from ddmr_cli.study import analysis
-from ddmr_cli.study.claims import CLAIM_IDS, claims
+from ddmr_cli.study.claims import CLAIM_IDS, bounds, claims, rule
+from ddmr_cli.study.stages import STAGES
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -49,7 +50,7 @@ def _study_config(stage_dir: Path):
 def _box_and_faithful(out: Path):
     from ddmr_cli.study.setup import study_setup
 
-    for stage in ("oat", "morris", "lhs", "calibration", "sobol", "map", "points"):
+    for stage in STAGES:
         cfg = _study_config(out / stage)
         if cfg is not None:
             box, _, faithful, _ = study_setup(cfg, out / stage)
@@ -73,7 +74,8 @@ def oat_figure(rows: "pd.DataFrame", box, faithful: dict, path: Path) -> Path:
         xs = part[name].astype(str).tolist() if p.is_choice else part[name].astype(float).to_numpy()
         for i, (cid, claim) in enumerate(zip(ids, claims())):
             ax = axes[i][j]
-            ax.axhspan(max(claim.low, -1e3), min(claim.high, 1e3), color=OKABE_ITO["bluish_green"], alpha=0.15, lw=0)
+            low, high = bounds(claim)
+            ax.axhspan(max(low, -1e3), min(high, 1e3), color=OKABE_ITO["bluish_green"], alpha=0.15, lw=0)
             ax.plot(xs, part[cid].to_numpy(float), marker="o", ms=3, color=COLOURS[i])
             if not base.empty:
                 ax.axhline(float(base[cid].iloc[0]), color="0.3", lw=0.8)
@@ -108,7 +110,7 @@ def map_figure(rows: "pd.DataFrame", x: str, y: str, path: Path) -> Path:
     """NNO-vs-NDO improvement over learning rate x width (log axes), both readings marked, the region of
     "about 40 %" (30-50 %) outlined."""
     plt = pyplot()
-    grid = rows.pivot_table(index=y, columns=x, values="nno_vs_ndo", aggfunc="mean")
+    grid = rows.pivot_table(index=y, columns=x, values="vs_smc_ndo", aggfunc="mean")
     xs, ys, z = grid.columns.to_numpy(float), grid.index.to_numpy(float), grid.to_numpy(float)
     fig, ax = plt.subplots(figsize=(6.4, 5.0))
     lim = max(10.0, float(np.nanmax(np.abs(z)))) if np.isfinite(z).any() else 10.0
@@ -213,7 +215,7 @@ def claim_table(holds: "pd.DataFrame | None", morris: "pd.DataFrame | None", sob
     """Per claim: rule, faithful statistic, share of the box (95 % CI), top 3 parameters (Morris mu*), Sobol ST."""
     rows = []
     for claim in claims():
-        cells = [claim.text, claim.rule]
+        cells = [claim.title, rule(claim)]
         cells.append(_fmt(float(faithful_row[claim.id])) + (" (holds)" if faithful_row[f"{claim.id}_holds"] == 1.0
                                                              else "") if faithful_row is not None else "-")
         if holds is not None:
@@ -242,8 +244,7 @@ def write_report(out: Path) -> Path:
     out = Path(out)
     fig_dir = out / FIGURES
     box, faithful = _box_and_faithful(out)
-    stage = {s: _read_csv(out / s / "study.csv") for s in ("oat", "morris", "sobol", "map", "lhs", "calibration",
-                                                            "points")}
+    stage = {s: _read_csv(out / s / "study.csv") for s in STAGES}
     morris = _read_csv(out / "morris" / analysis.MORRIS_CSV)
     sobol = _read_csv(out / "sobol" / analysis.SOBOL_CSV)
     holds = _read_csv(out / "lhs" / analysis.HOLDS_CSV)

@@ -7,19 +7,13 @@ import re
 from typing import TYPE_CHECKING, Iterable, Sequence
 
 from ddmr_cli.engine.metrics import METRICS
-from ddmr_cli.report.data import PAPER_SCENARIO, ReportData, paper_numbers
+from ddmr_cli.paper import PAPER_SCENARIO, TABLE4_COLUMNS
+from ddmr_cli.paper import numbers as paper_numbers
+from ddmr_cli.report.data import ReportData
 
 if TYPE_CHECKING:
     import pandas as pd
 
-#: Table 4's columns: (our metric, statistic, paper column, header).
-TABLE4_COLUMNS = (
-    ("deviation_mae", "mean", "deviation_mean", "Deviation mean (m)"),
-    ("deviation_mae", "sd", "deviation_sd", "Deviation SD (m)"),
-    ("e_x_mae", "mean", "e_x_mae", "e_x MAE (m)"),
-    ("e_y_mae", "mean", "e_y_mae", "e_y MAE (m)"),
-    ("e_theta_mae", "mean", "e_theta_mae", "e_θ MAE (rad)"),
-)
 
 
 _NUMERIC = re.compile(r"^\s*([-+−–×]|\d|\[|\(\d|\(-)")

@@ -13,22 +13,24 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ddmr_cli.engine.metrics import METRICS
-from ddmr_cli.report.data import ReportData, controller_rank, paper_numbers
+from ddmr_cli.paper.claims import (BASELINE, NNO, NNO_READINGS, RANKING as RANKING_KIND, STEADY as SS,
+                                   Claim, available, baseline, paper_controllers)
+from ddmr_cli.paper.claims import by_id as claim_definitions
+from ddmr_cli.paper.claims import claims as paper_claims
+from ddmr_cli.paper import numbers as paper_numbers
+from ddmr_cli.report.data import ReportData, controller_rank
 from ddmr_cli.report.stats import (ALPHA, BOOT_SEED, FAILS, HOLDS, INCONCLUSIVE, MARGIN_WHY, MIN_PAIRS, N_BOOT, TIE,
                                    Margin, Paired, category, combine, paired, verdict_about, verdict_lower,
                                    verdict_over)
 from ddmr_cli.report.tables import fmt, isnan, md_table
 
-NNO_READINGS = ("smc_ndo_nno", "smc_ndo_nno_text")
-RANKING = ("pid", "smc", "smc_ndo")  # then the NNO reading; largest deviation first
-ABOUT_BAND = 0.10
+#: The ranking's controllers before SMC-NDO-NNO, largest deviation first (the claim's, :mod:`ddmr_cli.paper.claims`).
+RANKING = tuple(c for c in claim_definitions()["ranking"].controllers if c != NNO)
 #: Controllers the paper's claims name (and ablations of them); every other controller of a report is a baseline
 #: that SMC-NDO-NNO is compared against (super-twisting, ADRC, adaptive SMC, ...; not a claim of the paper).
-PAPER_CONTROLLERS = RANKING + NNO_READINGS + ("smc_nno", "open_loop")
-#: What SMC-NDO-NNO is compared with a baseline on (the deviation metric is filled in per report).
-BASELINE_METRICS = (("deviation", "lower {dev} than"), ("chattering", "less chattering (total variation of u) than"))
-#: Suffix of the steady-state metric columns (e.g. ``deviation_mae_ss``), used for the verdicts when present.
-SS = "_ss"
+PAPER_CONTROLLERS = tuple(sorted(paper_controllers(), key=controller_rank))
+#: How the report names a comparison with a baseline, per aspect of ``paper.claims.BASELINE_METRICS``.
+BASELINE_TITLES = {"deviation": "lower {dev} than", "chattering": "less chattering (total variation of u) than"}
 
 VERDICT_RULES = {
     HOLDS: "the claimed difference is there, significant (Wilcoxon p < 0.05, 95 % CI excluding 0) and larger than "
@@ -83,6 +85,8 @@ class ClaimResult:
     by_metric: dict[tuple[str, str, str], str] = field(default_factory=dict)
     #: the claimed reduction as a sentence ("> 60 %"), for the summary
     claimed: str = ""
+    #: the claim's definition (:mod:`ddmr_cli.paper.claims`)
+    claim: Claim | None = None
 
     def skip(self, why: str) -> None:
         if why not in self.skipped:
@@ -94,13 +98,24 @@ def unit_of(metric: str) -> str:
     return METRICS[base][0] if base in METRICS else ""
 
 
+def _has(data: ReportData):
+    """Whether the jobs' metrics.csv have a metric (some value of a job that did not fail)."""
+    m = data.metrics
+
+    def has(metric: str) -> bool:
+        return metric in m and m.loc[m["status"] == "ok", metric].notna().any()
+    return has
+
+
+def metrics_of(data: ReportData, claim: Claim) -> tuple[str, ...]:
+    """The metrics a claim is judged on in this report: its own, a steady-state one the jobs lack read on its
+    whole-run twin (:func:`ddmr_cli.paper.claims.available`)."""
+    return available(claim.metrics, _has(data))
+
+
 def deviation_metric(data: ReportData) -> str:
     """``deviation_mae_ss`` (steady state) when every job's metrics.csv has it, else ``deviation_mae``."""
-    col = "deviation_mae" + SS
-    m = data.metrics
-    if col in m and m.loc[m["status"] == "ok", col].notna().any():
-        return col
-    return "deviation_mae"
+    return deviation_metrics(data)[0]
 
 
 def _key_for(data: ReportData, scenario: str, controller: str) -> tuple[str | None, str]:
@@ -129,8 +144,7 @@ def _compare(data, claim, scenario, reading, a, b, metric, judge, margin: Margin
 def deviation_metrics(data: ReportData) -> tuple[str, ...]:
     """The deviation metrics the claims are judged on: ours (steady state) first when the jobs have it, then the
     paper's own whole-run deviation MAE (its Table 4)."""
-    dev = deviation_metric(data)
-    return (dev, "deviation_mae") if dev != "deviation_mae" else ("deviation_mae",)
+    return metrics_of(data, claim_definitions()["vs_smc_ndo"])
 
 
 def metric_name(metric: str) -> str:
@@ -142,42 +156,50 @@ def metric_name(metric: str) -> str:
             "d_est_mae": "estimation MAE"}.get(metric, metric)
 
 
+RANKING_RULE = ("each adjacent pair is judged by the rules above on the difference smaller − larger; the ranking "
+                "holds when every pair holds, does not hold when a pair does not (significantly the other way, or no "
+                "practical difference), and is inconclusive otherwise")
+BASELINE_RULE = ("as each ranking pair: holds when SMC-NDO-NNO's value is significantly lower and the whole CI of "
+                 "the difference lies beyond the margin; tie inside the margin; does not hold when it is "
+                 "significantly higher")
+
+
+def rule(claim: Claim) -> str:
+    """The report's rule for a claim, from its kind and claimed reduction."""
+    if claim.kind == RANKING_KIND:
+        return RANKING_RULE
+    if claim.kind == BASELINE:
+        return BASELINE_RULE
+    v = 100 * claim.value
+    if claim.about:
+        text = (f"holds when the difference is significant and beyond the margin and the reduction (= −difference "
+                f"in %) lies in {v:.0f} ± {100 * claim.band:.0f} %; does not hold when the 95 % CI of the "
+                f"reduction lies outside that band or the difference inside the margin")
+    else:
+        text = (f"holds when the lower end of the 95 % CI of the reduction is above {v:.0f} % (p < 0.05, beyond "
+                f"the margin); does not hold when its upper end is below {v:.0f} % or the difference is inside "
+                f"the margin")
+    if len(claim.metrics) > 1:
+        text += (f"; the verdict rests on the {metric_name(claim.metrics[0])}, the "
+                 + " and the ".join(metric_name(m) for m in claim.metrics[1:]) + " judged beside it")
+    return f"{claim.reading}: {text}" if claim.reading else text
+
+
+def judge(claim: Claim):
+    """The verdict function ``(paired result, margin) -> verdict`` of a claim's kind."""
+    if claim.kind == RANKING_KIND:
+        return verdict_lower
+    if claim.kind == BASELINE:
+        return lambda r, m: verdict_lower(r, m, equality_possible=True)
+    if claim.about:
+        return lambda r, m: verdict_about(r, claim.value, claim.band, m)
+    return lambda r, m: verdict_over(r, claim.value, m)
+
+
 def claims(data: ReportData) -> list[ClaimResult]:
-    """The paper's claims with their rules (no checks yet)."""
-    est = paper_numbers()["claims"]["estimation"]
-    est_reduction = 1.0 - est["ndo_nno"] / est["ndo"]
-    devs = deviation_metrics(data)
-    return [
-        ClaimResult("ranking", "Ranking PID > SMC > SMC-NDO > SMC-NDO-NNO (deviation, largest first)",
-                    "each adjacent pair is judged by the rules above on the difference smaller − larger; the ranking "
-                    "holds when every pair holds, does not hold when a pair does not (significantly the other way, "
-                    "or no practical difference), and is inconclusive otherwise",
-                    metrics=devs, claimed="each adjacent pair lower"),
-        ClaimResult("vs_smc_ndo", "SMC-NDO-NNO: about 40 % lower deviation than SMC-NDO",
-                    f"holds when the difference is significant and beyond the margin and the reduction "
-                    f"(= −difference in %) lies in 40 ± {100 * ABOUT_BAND:.0f} %; does not hold when the 95 % CI of "
-                    f"the reduction lies outside that band or the difference inside the margin",
-                    metrics=devs, claimed=f"a reduction of 40 ± {100 * ABOUT_BAND:.0f} %"),
-        ClaimResult("vs_smc", "SMC-NDO-NNO: over 60 % lower deviation than SMC",
-                    "holds when the lower end of the 95 % CI of the reduction is above 60 % (p < 0.05, beyond the "
-                    "margin); does not hold when its upper end is below 60 % or the difference is inside the margin",
-                    metrics=devs, claimed="a reduction of more than 60 %"),
-        ClaimResult("chattering", "SMC-NDO-NNO: near-complete elimination of chattering (vs SMC-NDO)",
-                    "read as a reduction of at least 90 %: holds when the 95 % CI of the reduction lies above 90 % "
-                    "(p < 0.05, beyond the margin), does not hold when it lies below 90 % or the difference inside "
-                    "the margin; the verdict rests on the share of var(u) above 10 Hz, which isolates switching "
-                    "(docs/model.md §7); the total variation of u, the field's common measure, also counts the "
-                    "compensation of the terrain as chattering and is judged beside it",
-                    metrics=("hf_fraction", "chattering"), claimed="a reduction of at least 90 %"),
-        ClaimResult("estimation", f"Disturbance-estimation MAE: NDO {est['ndo']:.1f} vs NDO+NNO {est['ndo_nno']:.1f} "
-                                  f"(a {100 * est_reduction:.0f} % reduction, 'three times lower')",
-                    f"our d_est_mae of SMC-NDO (NDO estimate) vs SMC-NDO-NNO (NDO + NN estimate); holds when the "
-                    f"reduction is significant, beyond the margin, and its estimate lies in "
-                    f"{100 * est_reduction:.0f} ± {100 * ABOUT_BAND:.0f} %; does not hold when its 95 % CI lies "
-                    f"outside that band or the difference inside the margin",
-                    metrics=("d_est_mae",), claimed=f"a reduction of {100 * est_reduction:.0f} ± "
-                                                    f"{100 * ABOUT_BAND:.0f} %"),
-    ]
+    """The paper's claims (:mod:`ddmr_cli.paper.claims`) with their rules (no checks yet)."""
+    return [ClaimResult(c.id, c.title, rule(c), metrics=metrics_of(data, c), claimed=c.claimed, claim=c)
+            for c in paper_claims()]
 
 
 def paper_self_contradiction() -> str:
@@ -196,42 +218,27 @@ def baselines(data: ReportData) -> list[str]:
 
 
 def baseline_claims(data: ReportData) -> list[ClaimResult]:
-    """One comparison per baseline and metric: SMC-NDO-NNO (candidate) against the baseline (reference)."""
+    """One comparison per baseline and aspect: SMC-NDO-NNO (candidate) against the baseline (reference)."""
     dev = "steady-state deviation MAE" if deviation_metric(data).endswith(SS) else "deviation MAE"
     out = []
     for ctrl in baselines(data):
         label = next(j.label for j in data.jobs if j.controller == ctrl)
-        for metric, what in BASELINE_METRICS:
-            out.append(ClaimResult(f"{ctrl}:{metric}", f"SMC-NDO-NNO: {what.format(dev=dev)} {label} (not a paper claim)",
-                                   "as each ranking pair: holds when SMC-NDO-NNO's value is significantly lower and "
-                                   "the whole CI of the difference lies beyond the margin; tie inside the margin; "
-                                   "does not hold when it is significantly higher",
-                                   metrics=(deviation_metric(data) if metric == "deviation" else metric,)))
+        for c in baseline(ctrl):
+            aspect = c.id.partition(":")[2]
+            out.append(ClaimResult(c.id, f"SMC-NDO-NNO: {BASELINE_TITLES[aspect].format(dev=dev)} {label} (not a "
+                                         f"paper claim)", rule(c), metrics=metrics_of(data, c), claim=c))
     return out
-
-
-def _lower_baseline(r, m):
-    return verdict_lower(r, m, equality_possible=True)
 
 
 def evaluate(data: ReportData, margin: Margin | None = None) -> list[ClaimResult]:
     """Every claim's checks, its verdict on each of its metrics and its overall verdict (on its first metric)."""
     margin = margin or Margin()
-    est = paper_numbers()["claims"]["estimation"]
-    est_reduction = 1.0 - est["ndo_nno"] / est["ndo"]
     results = claims(data) + baseline_claims(data)
-    by_id = {c.id: c for c in results}
     readings = [r for r in NNO_READINGS if any(j.controller == r for j in data.jobs)]
     if not readings:
         for c in results:
             c.skip("the sweep has no SMC-NDO-NNO job (smc_ndo_nno or smc_ndo_nno_text)")
         return results
-    judges = {  # claim id -> reference controller, judge
-        "vs_smc_ndo": ("smc_ndo", lambda r, m: verdict_about(r, 0.40, ABOUT_BAND, m)),
-        "vs_smc": ("smc", lambda r, m: verdict_over(r, 0.60, m)),
-        "chattering": ("smc_ndo", lambda r, m: verdict_over(r, 0.90, m)),
-        "estimation": ("smc_ndo", lambda r, m: verdict_about(r, est_reduction, ABOUT_BAND, m)),
-    }
     shared: dict[tuple[str, str, str, str], Check] = {}
     for scenario in data.scenarios:
         for reading in readings:
@@ -240,44 +247,18 @@ def evaluate(data: ReportData, margin: Margin | None = None) -> list[ClaimResult
                 for c in results:
                     c.skip(why)
                 continue
-            # ranking: adjacent pairs among the controllers present, in the claimed order
-            chain, missing = [], []
-            for ctrl in RANKING:
-                key, why = _key_for(data, scenario, ctrl)
-                (chain.append(key) if key else missing.append(why))
-            chain.append(nno)
-            rank = by_id["ranking"]
-            for why in missing:
-                rank.skip(why + ("; the order is checked among the others" if len(chain) > 1 else ""))
-            if len(chain) > 1:
-                for metric in rank.metrics:
-                    verdicts = []
-                    for worse, better in zip(chain, chain[1:]):
-                        done = (scenario, worse, better, metric)
-                        if done not in shared:  # pairs without the NNO are shared by both readings
-                            shared[done] = _compare(data, rank.id, scenario, reading, worse, better, metric,
-                                                    verdict_lower, margin)
-                            rank.checks.append(shared[done])
-                        verdicts.append(shared[done].verdict)
-                    rank.by_metric[(scenario, reading, metric)] = combine(verdicts)
-            for cid, (ref_ctrl, judge) in judges.items():
-                ref, why = _key_for(data, scenario, ref_ctrl)
-                if ref is None:
-                    by_id[cid].skip(why)
-                    continue
-                for metric in by_id[cid].metrics:
-                    by_id[cid].checks.append(_compare(data, cid, scenario, reading, ref, nno, metric, judge, margin))
-            for ctrl in baselines(data):
-                ref, why = _key_for(data, scenario, ctrl)
-                for metric, _ in BASELINE_METRICS:
-                    claim = by_id[f"{ctrl}:{metric}"]
-                    if ref is None:
-                        claim.skip(why)
-                        continue
-                    claim.checks.append(_compare(data, claim.id, scenario, reading, ref, nno, claim.metrics[0],
-                                                 _lower_baseline, margin))
             for c in results:
-                if c.id == "ranking":
+                if c.claim.kind == RANKING_KIND:
+                    _rank(data, c, scenario, reading, nno, margin, shared)
+                    continue
+                ref, why = _key_for(data, scenario, c.claim.reference)
+                if ref is None:
+                    c.skip(why)
+                    continue
+                for metric in c.metrics:
+                    c.checks.append(_compare(data, c.id, scenario, reading, ref, nno, metric, judge(c.claim), margin))
+            for c in results:
+                if c.claim.kind == RANKING_KIND:
                     continue
                 for metric in c.metrics:
                     mine = [k.verdict for k in c.checks
@@ -288,6 +269,30 @@ def evaluate(data: ReportData, margin: Margin | None = None) -> list[ClaimResult
                 if (scenario, reading, c.metrics[0]) in c.by_metric:
                     c.overall[(scenario, reading)] = c.by_metric[(scenario, reading, c.metrics[0])]
     return results
+
+
+def _rank(data: ReportData, rank: ClaimResult, scenario: str, reading: str, nno: str, margin: Margin,
+          shared: dict) -> None:
+    """A ranking's adjacent pairs among the controllers present, in the claimed order (SMC-NDO-NNO as ``reading``);
+    a pair without the NNO is checked once for both readings (``shared``)."""
+    chain, missing = [], []
+    for ctrl in rank.claim.controllers:
+        key, why = (nno, "") if ctrl == NNO else _key_for(data, scenario, ctrl)
+        (chain.append(key) if key else missing.append(why))
+    for why in missing:
+        rank.skip(why + ("; the order is checked among the others" if len(chain) > 1 else ""))
+    if len(chain) < 2:
+        return
+    for metric in rank.metrics:
+        verdicts = []
+        for worse, better in zip(chain, chain[1:]):
+            done = (scenario, worse, better, metric)
+            if done not in shared:
+                shared[done] = _compare(data, rank.id, scenario, reading, worse, better, metric, judge(rank.claim),
+                                        margin)
+                rank.checks.append(shared[done])
+            verdicts.append(shared[done].verdict)
+        rank.by_metric[(scenario, reading, metric)] = combine(verdicts)
 
 
 def our_order(data: ReportData, scenario: str, keys: list[str], metric: str) -> str:
@@ -364,14 +369,14 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
         for chk in c.checks:
             r = chk.result
             k, u = _scaled(chk.metric)
-            if c.id == "ranking":
+            if c.claim.kind == RANKING_KIND:
                 first = [chk.scenario, f"{data.label(chk.a)} > {data.label(chk.b)}", chk.metric + (f" ({u})" if u else "")]
             else:
                 first = [chk.scenario, data.label(chk.b), chk.metric + (f" ({u})" if u else "")]
             nums = (["–"] * 6 if r is None else
                     [r.n, fmt(k * r.mean_a, 4), fmt(k * r.mean_b, 4), *_diff_cells(r, chk.metric), _p(r.p)])
             rows.append(first + nums + [_margin_cell(chk), chk.verdict + (f" ({chk.note})" if chk.note else "")])
-        if c.id == "ranking":
+        if c.claim.kind == RANKING_KIND:
             _, u = _scaled(dev)
             headers = ["Scenario", "Pair (claimed larger > smaller)", "Metric", "Seeds", f"Mean larger ({u})",
                        f"Mean smaller ({u})", f"Difference smaller − larger ({u}) [95 % CI]",
@@ -383,7 +388,7 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
         out += [md_table(headers, rows), ""]
         for (scenario, reading) in c.overall:
             out.append(summary_line(data, c, scenario, reading, title=False))
-            if c.id == "ranking":
+            if c.claim.kind == RANKING_KIND:
                 keys = [k for k in data.keys(scenario)
                         if data.controller_of(k) in RANKING + (reading,) and k == data.controller_of(k)]
                 for metric in c.metrics:
@@ -409,7 +414,7 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
 def _numbers(c: ClaimResult, scenario: str, reading: str, metric: str) -> str:
     """Ours against the claim, with the CI: for a claim on one pair, its reduction."""
     found = [k for k in c.checks if k.scenario == scenario and k.reading == reading and k.metric == metric]
-    if c.id == "ranking" or len(found) != 1 or found[0].result is None:
+    if c.claim.kind == RANKING_KIND or len(found) != 1 or found[0].result is None:
         return ""
     r = found[0].result
     lo, hi = r.reduction_ci

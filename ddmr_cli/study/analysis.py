@@ -156,7 +156,7 @@ def holds(rows: "pd.DataFrame") -> "pd.DataFrame":
         flag = rows[f"{claim.id}_holds"].to_numpy(float) if f"{claim.id}_holds" in rows else np.zeros(len(rows))
         k, n = int(np.nansum(flag)), len(rows)
         low, high = wilson(k, n)
-        out.append({"claim": claim.id, "text": claim.text, "rule": claim.rule, "samples": n, "holds": k,
+        out.append({"claim": claim.id, "text": claim.title, "rule": claim_stats.rule(claim), "samples": n, "holds": k,
                     "share": k / n if n else math.nan, "share_low": low, "share_high": high,
                     "unusable": int(np.sum(~np.isfinite(flag))),
                     "median": float(np.nanmedian(rows[claim.id])) if claim.id in rows and n else math.nan})
@@ -190,7 +190,7 @@ def calibration(rows: "pd.DataFrame", names: Sequence[str]) -> dict:
         "numbers": [{"number": k, "paper": paper[k], "ours": ours[k], "log_ratio": residuals[k],
                      "ratio": math.exp(residuals[k]) if np.isfinite(residuals[k]) else math.nan} for k in paper],
         "claims": {c.id: {"statistic": float(best[c.id]), "holds": bool(best[f"{c.id}_holds"] == 1.0),
-                          "rule": c.rule} for c in claim_stats.claims()},
+                          "rule": claim_stats.rule(c)} for c in claim_stats.claims()},
     }
 
 

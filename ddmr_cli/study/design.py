@@ -21,8 +21,7 @@ import numpy as np
 
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.study.space import Box
-
-STAGES = ("oat", "morris", "sobol", "map", "lhs", "calibration", "points")
+from ddmr_cli.study.stages import STAGES
 
 
 @dataclass

@@ -32,6 +32,7 @@ from omegaconf import DictConfig, OmegaConf
 from ddmr_cli.storage import io
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study.space import READING, reading_of, Box
+from ddmr_cli.study.stages import STAGES
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -43,7 +44,7 @@ SEARCH_FILE = "search.json"
 #: settings that do not change what a trial computes: a search may be resumed with other values
 BUDGET_KEYS = ("trials", "batch", "seed", "warm_start", "warm_start_from")
 #: study settings of the other stages (their sizes, SALib's seed, the named readings): not the search's
-OTHER_STAGES = ("oat", "morris", "sobol", "map", "lhs", "points", "calibrated", "sampler_seed", "chunk")
+OTHER_STAGES = tuple(s for s in STAGES if s != STAGE) + ("calibrated", "sampler_seed", "chunk")
 #: largest |log(ours / paper)| a number counts with in the objective (a factor 100); a missing number counts it
 LOG_CAP = math.log(100.0)
 
