@@ -206,6 +206,8 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
         "options": jobdir.output_options(cfg),
         "parameters": sim.controller.parameters(),
         "estimators": list(sim.controller.estimators()),
+        "diagnostics": [{"name": c.name, "kind": c.kind, "description": c.description}
+                        for c in sim.controller.diagnostics()],
         "seeds": [result.seeds[0], result.seeds[-1]],
         "series_seeds": list(result.series),
         "statistics": result.summary(),

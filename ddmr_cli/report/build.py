@@ -283,21 +283,29 @@ class Report:
         est["paper_d_est_mae"] = [paper.get(r["controller"], math.nan) if r["scenario"] == PAPER_SCENARIO
                                   else math.nan for _, r in est.iterrows()]
         est["ratio_d_est_mae"] = est["d_est_mae_mean"] / est["paper_d_est_mae"]
-        # a controller without an estimator reports d-hat = 0: its "estimation MAE" is the mean |d|, not shown
-        blind = [d.job(r["scenario"], r["key"]).summary.get("estimators") == [] for _, r in est.iterrows()]
+        # the estimators each controller names (its ESTIMATE channels); a controller without one reports d-hat = 0:
+        # its "estimation MAE" is the mean |d|, not shown, and the NDO-alone column only for a controller with an NDO
+        names = [d.job(r["scenario"], r["key"]).summary.get("estimators") for _, r in est.iterrows()]
+        est["estimators"] = [" + ".join(n) if n else ("–" if n is not None else "") for n in names]
+        blind = [n == [] for n in names]
         est.loc[blind, [c for c in est.columns if c.startswith(("d_est_mae", "ratio_d_est_mae"))]] = math.nan
+        no_ndo = [n is not None and "NDO" not in n for n in names]
+        est.loc[no_ndo, [c for c in est.columns if c.startswith("d_est_mae_ndo")]] = math.nan
         link = self.csv("estimation.csv", est, "disturbance estimation")
         self.add("## Disturbance estimation", "",
-                 f"MAE of d_true − d̂ over both wheels (rad/s², units of d), of the NDO part alone, and the MAE of the "
-                 f"sliding variable ({link}). Controllers without an estimator (PID, SMC, ...) report d̂ = 0: theirs "
-                 f"would only be the mean |d| and is left out (–). "
+                 f"MAE of d_true − d̂ over both wheels (rad/s², units of d), d̂ the sum of the estimates of the "
+                 f"estimators each controller names (an NDO, a network, ADRC's ESO), of the NDO part alone (controllers "
+                 f"with an NDO), and the MAE of the sliding variable ({link}). Controllers without an estimator (PID, "
+                 f"SMC, ...) report d̂ = 0: theirs would only be the mean |d| and is left out (–). "
                  f"The paper's 48.3 (NDO) and 16.0 (NDO+NNO) are compared with scenario 1.", "")
         for scenario in d.scenarios:
-            extra = [("Paper", lambda r: T.fmt(r["paper_d_est_mae"])),
-                     ("Ours/paper", lambda r: "–" if T.isnan(r["ratio_d_est_mae"]) else f"×{r['ratio_d_est_mae']:.2f}")]
+            paper_columns = [("Paper", lambda r: T.fmt(r["paper_d_est_mae"])),
+                             ("Ours/paper", lambda r: "–" if T.isnan(r["ratio_d_est_mae"])
+                              else f"×{r['ratio_d_est_mae']:.2f}")]
+            extra = [("Estimators", lambda r: r["estimators"])] + (paper_columns if scenario == PAPER_SCENARIO else [])
             self.add(f"### {scenario}", "", T.md_metric_table(
                 est, scenario, [("d_est_mae", "d estimation MAE"), ("d_est_mae_ndo", "NDO part alone"),
-                                ("s_mae", "s MAE (rad/s)")], extra if scenario == PAPER_SCENARIO else ()), "")
+                                ("s_mae", "s MAE (rad/s)")], extra), "")
 
     def nn_share(self) -> None:
         """The NN's share of the disturbance estimate and of the voltage, per NNO job, from its kept series."""

@@ -430,8 +430,8 @@ class ScenarioFigures:
         errors = []
         for i, (row, job) in enumerate(zip(axes, observers)):
             s = self._s(job)
-            d_hat = s["d_hat_ndo_right"] + s["d_hat_nn_right"]
-            what = "NDO + NN" if S.has_nn(s) else "NDO"
+            d_hat = S.d_hat(s, "right")
+            what = " + ".join(S.estimate_names(s)) or "none"
             for ax, full in zip(row, (False, True)):
                 win = S.window_mask(s["t"], t0, t1) if full else np.ones(len(s["t"]), bool)
                 idx = np.flatnonzero(win) if full else thin(d_hat)
@@ -469,9 +469,10 @@ class ScenarioFigures:
         shares = []
         for i, (row, job) in enumerate(zip(axes, nnos)):
             s = self._s(job)
-            parts = (("d_true_right", "true d", {**REFERENCE_STYLE, "lw": 0.6}),
-                     ("d_hat_ndo_right", "d̂_NDO", {"color": PART_COLORS["ndo"], "lw": 0.9}),
-                     ("d_hat_nn_right", "d̂_NN", {"color": PART_COLORS["nn"], "lw": 1.1}))
+            nn_part = ("d_hat_nn_right", "d̂_NN", {"color": PART_COLORS["nn"], "lw": 1.1})
+            parts = tuple(part for part in (("d_true_right", "true d", {**REFERENCE_STYLE, "lw": 0.6}),
+                                            ("d_hat_ndo_right", "d̂_NDO", {"color": PART_COLORS["ndo"], "lw": 0.9}),
+                                            nn_part) if part[0] in s)  # a network without an NDO: no NDO part
             for ax, full in zip(row[:2], (False, True)):
                 win = S.window_mask(s["t"], t0, t1) if full else np.ones(len(s["t"]), bool)
                 for z, (channel, label, kw) in enumerate(parts):
@@ -479,7 +480,7 @@ class ScenarioFigures:
                     idx = np.flatnonzero(win) if full else thin(y)
                     ax.plot(s["t"][idx], y[idx], label=label, zorder=2 + z, **kw)
             idx = thin(s["d_hat_nn_right"])
-            row[2].plot(s["t"][idx], s["d_hat_nn_right"][idx], label="d̂_NN", **parts[2][2])
+            row[2].plot(s["t"][idx], s["d_hat_nn_right"][idx], label="d̂_NN", **nn_part[2])
             for ax in row:
                 ax.axhline(0, color="0.3", lw=0.5)
                 ax.grid(alpha=0.3)

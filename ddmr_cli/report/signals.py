@@ -49,14 +49,38 @@ def nominal_input_inverse(robot_cfg: dict | None):
         return None
 
 
+ESTIMATE_PREFIX = "d_hat_"
+
+
+def estimate_names(series: dict) -> list[str]:
+    """The estimators whose estimate of d a run's series carry (``d_hat_<name>_right``), in the controller's row
+    order, upper-case (``NDO``, ``NN``, ``ESO``)."""
+    return [k[len(ESTIMATE_PREFIX):-len("_right")].upper() for k in series
+            if k.startswith(ESTIMATE_PREFIX) and k.endswith("_right")]
+
+
+def d_hat(series: dict, wheel: str = "right") -> np.ndarray:
+    """The controller's whole estimate of d on one wheel: the sum of its estimate channels
+    (``d_hat_<name>_<wheel>``, in row order), zero without one."""
+    out = np.zeros(len(series["t"])) if "t" in series else 0.0
+    for name in estimate_names(series):
+        out = out + series[f"{ESTIMATE_PREFIX}{name.lower()}_{wheel}"]
+    return out
+
+
+def _channel(series: dict, name: str) -> np.ndarray:
+    """A series channel, zero when the run's controller does not have it."""
+    return np.asarray(series[name]) if name in series else np.zeros(len(series["u_right"]))
+
+
 def nn_share(series_list: list[dict], g_inv=None) -> dict:
     """The NN's share of a job's disturbance estimate and of its voltage, over the given kept seeds and both
     wheels: ``mean |d̂_NN| / mean |d̂_NDO + d̂_NN|``, and the voltage the NN term adds, ``g^-1 d̂_NN`` (eq. 17
     subtracts ``d̂``), against the mean |u| applied."""
     ndo, nn, u, u_nn = [], [], [], []
     for s in series_list:
-        d_ndo = np.column_stack([s["d_hat_ndo_right"], s["d_hat_ndo_left"]])
-        d_nn = np.column_stack([s["d_hat_nn_right"], s["d_hat_nn_left"]])
+        d_ndo = np.column_stack([_channel(s, "d_hat_ndo_right"), _channel(s, "d_hat_ndo_left")])
+        d_nn = np.column_stack([_channel(s, "d_hat_nn_right"), _channel(s, "d_hat_nn_left")])
         ndo.append(d_ndo)
         nn.append(d_nn)
         u.append(np.column_stack([s["u_right"], s["u_left"]]))
