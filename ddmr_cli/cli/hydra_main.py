@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import hydra
 from hydra.core.plugins import Plugins
+from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import DdmrOptunaSweeper
 from hydra_plugins.ddmr_sweeper.ddmr_sweeper import DdmrSweeper
 from omegaconf import DictConfig
 
 from ddmr_cli.cli import config  # noqa: F401  (registers the config schemas)
 from ddmr_cli.cli.app import run_job
 
-# hydra/sweeper=ddmr (conf/launcher/*.yaml): Hydra's plugin scan does not see an editable install's hydra_plugins
+# hydra/sweeper=ddmr (conf/launcher/*.yaml) and hydra/sweeper=ddmr_optuna (conf/tuning, the calibration search):
+# Hydra's plugin scan does not see an editable install's hydra_plugins
 Plugins.instance().register(DdmrSweeper)
+Plugins.instance().register(DdmrOptunaSweeper)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")

@@ -151,6 +151,9 @@ def check_search(cfg: DictConfig) -> None:
     from ddmr_cli.checks import integer
     from ddmr_cli.errors import ConfigError
 
+    from ddmr_cli.compat import require_optuna
+
+    require_optuna()
     c = cfg.study.calibration
     integer("study.calibration.trials", c.trials, 1)
     integer("study.calibration.batch", c.batch, 1)
@@ -264,6 +267,8 @@ def trial_rows(sweep_dir: Path, rows: "pd.DataFrame", complete) -> "pd.DataFrame
         return rows.iloc[:0]
     from optuna.trial import TrialState
 
+    from ddmr_cli.compat import was_enqueued
+
     records = [(frozenset(s.get("overrides", [])), d, s) for d, s in complete]
     out = []
     for t in load_study(sweep_dir, info["study_name"]).get_trials(deepcopy=False):
@@ -278,7 +283,7 @@ def trial_rows(sweep_dir: Path, rows: "pd.DataFrame", complete) -> "pd.DataFrame
         row = row.iloc[[0]].copy()
         row["sample"] = t.number
         row["objective"] = float(t.values[0])
-        row["warm_start"] = int("fixed_params" in t.system_attrs)
+        row["warm_start"] = int(was_enqueued(t))
         out.append(row)
     return pd.concat(out, ignore_index=True) if out else rows.iloc[:0]
 
