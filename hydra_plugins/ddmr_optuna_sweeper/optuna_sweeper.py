@@ -117,7 +117,11 @@ class DdmrOptunaSweeper(Sweeper):
                     log.warning("trial %d failed: %s", trial.number, exc)
                     failures += 1
                     continue
-                study.tell(trial, values)
+                try:
+                    study.tell(trial, values)
+                except RuntimeError as exc:  # the grid sampler's Study.stop once the grid is done: told, then raised
+                    if "Study.stop" not in str(exc):
+                        raise
             if failures / len(returns) > self.max_failure_rate:
                 log.error("%d of %d trials failed (hydra.sweeper.max_failure_rate=%g)", failures, len(returns),
                           self.max_failure_rate)
