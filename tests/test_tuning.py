@@ -59,6 +59,18 @@ def test_the_study_settings_are_the_same_for_every_controller():
         assert len({str(OmegaConf.select(c, key)) for c in studies}) == 1, key
 
 
+@pytest.mark.parametrize("objective, sampler, directions", [("deviation", "TPESampler", ["minimize"]),
+                                                            ("pareto", "NSGAIISampler", ["minimize", "minimize"])])
+def test_every_study_is_ddmrs_optuna_sweeper_on_sqlite(objective, sampler, directions):
+    from hydra.utils import instantiate
+
+    cfg = compose_config(["+tune=smc_ndo", f"objective={objective}"], return_hydra_config=True)
+    sweeper = instantiate(cfg.hydra.sweeper)  # as Hydra instantiates it (the sampler node with it)
+    assert type(sweeper).__name__ == "DdmrOptunaSweeper" and type(sweeper.sampler_config).__name__ == sampler
+    assert sweeper.directions == directions and sweeper.storage == f"sqlite:///{cfg.hydra.sweep.dir}/study.db"
+    assert sweeper.study_name == f"smc_ndo-{objective}" and sweeper.n_jobs == cfg.tuning.batch
+
+
 # --- bad input ------------------------------------------------------------------------------------------------
 
 

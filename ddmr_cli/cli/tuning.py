@@ -1,4 +1,4 @@
-"""Gain tuning through Hydra's Optuna sweeper (docs/model.md §9): the trial, the study's checks and its tables.
+"""Gain tuning through ddmr's Optuna sweeper (docs/model.md §9): the trial, the study's checks and its tables.
 
 ``ddmr run -m +tune=<controller>`` composes a study (conf/tune/<controller>.yaml: the search space as the
 sweeper's ``hydra.sweeper.params``; conf/tuning/default.yaml: budget, seeds, scenarios, storage). Hydra's Optuna

@@ -1,7 +1,7 @@
-"""The calibration search of the sensitivity study through Hydra's Optuna sweeper (docs/model.md §11, stage
+"""The calibration search of the sensitivity study through ddmr's Optuna sweeper (docs/model.md §11, stage
 ``calibration``): the reading of the box nearest the paper's Table 4.
 
-``ddmr run -m +experiment=sensitivity_calibration`` runs Hydra's Optuna sweeper with a seeded TPE sampler, as the
+``ddmr run -m +experiment=sensitivity_calibration`` runs ddmr's Optuna sweeper with a seeded TPE sampler, as the
 gain tuning does (docs/model.md §9; :mod:`ddmr_cli.cli.tuning`): the sweeper asks ``study.calibration.batch``
 trials at a time, :func:`suggest_reading` (the sweeper's ``custom_search_space``) draws each trial's reading from
 the box (``+study.reading.<parameter>=value``: log axes log-uniform, choices categorical, ``study.vary``
