@@ -10,6 +10,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from ddmr_cli.compat import check_hydra, config_repository
 from ddmr_cli.config import schema  # noqa: F401  (registers the schemas in Hydra's ConfigStore)
 from hydra_plugins.ddmr_sweeper import ddmr_sweeper  # noqa: F401  (registers hydra/sweeper=ddmr, conf/launcher/*.yaml)
+from hydra_plugins.ddmr_optuna_sweeper import config as _optuna_sweeper  # noqa: F401  (hydra/sweeper=ddmr_optuna, its samplers)
 from ddmr_cli.config.build import build_simulation, config_hash, seeds_of
 from ddmr_cli.config.validate import kept_seeds, validate_config
 
