@@ -88,6 +88,8 @@ class MujocoPlant:
         self._hfields = [(int(m.hfield_adr[i]), int(m.hfield_ncol[i])) for i in range(m.nhfield)]
         joints = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, f"wheel_{s}") for s in ("R", "L")]
         self._wheel_dof = np.array([m.jnt_dofadr[j] for j in joints])
+        self._caster_qpos = np.array([m.jnt_qposadr[mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, f"caster_{s}")]
+                                      for s in ("front", "rear")])
         self._spec = int(mj.mjtState.mjSTATE_QPOS | mj.mjtState.mjSTATE_QVEL)
         self._nq = m.nq
         self._nominal = NominalModel.from_robot(robot)
@@ -143,9 +145,12 @@ class MujocoPlant:
             d.qpos[3:7] = (math.cos(th / 2), 0.0, 0.0, math.sin(th / 2))
             mj.mj_forward(m, d)
             held = np.r_[0, 1, 5, self._wheel_dof]  # x, y, yaw rate, wheels held still: z, roll, pitch settle
-            for _ in range(self._settle_steps):
-                mj.mj_step(m, d)
-                d.qvel[held] = 0.0
+            for settled in range(2):
+                for _ in range(self._settle_steps):
+                    mj.mj_step(m, d)
+                    d.qvel[held] = 0.0
+                # the caster springs carry no load at rest: their reference is where the first settling left them
+                m.qpos_spring[self._caster_qpos] = d.qpos[self._caster_qpos]
             v, om = R * (wr + wl) / 2, R * (wr - wl) / (2 * L)
             yaw = _yaw(d.qpos[3:7])
             d.qvel[:] = 0.0
@@ -201,6 +206,7 @@ class MujocoPlant:
         u = np.broadcast_to(np.asarray(u, dtype=float), (self._n, 2))
         b = np.broadcast_to(np.asarray(damping_scale, dtype=float), (self._n,))
         ctrl = np.column_stack([u, b, b])  # the motors' voltages and the dampers' scale (motor_gains)
+        self._diverged |= ~np.isfinite(ctrl).all(axis=1)  # a non-finite voltage or damping: diverged, not stepped
         w_before = self._qvel[:, self._wheel_dof].copy()
         xy_before = self._qpos[:, 0:2].copy()
         live = np.flatnonzero(~self._diverged)
@@ -261,6 +267,21 @@ class MujocoPlant:
         acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains, ``f(w_k) + g u_k``
         (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
         return self._d.copy()
+
+    def energy(self) -> np.ndarray:
+        """``(n, 2)`` each run's gravitational potential and kinetic energy [J] (MuJoCo's ``mj_energyPos`` and
+        ``mj_energyVel``; contact deformation not included): a diagnostic for the energy checks."""
+        mj = self._mj
+        out = np.empty((self._n, 2))
+        for i, (m, d) in enumerate(zip(self._models, self._datas)):
+            # the position-dependent quantities at the current state (what the next step recomputes anyway)
+            mj.mj_kinematics(m, d)
+            mj.mj_comPos(m, d)
+            mj.mj_crb(m, d)
+            mj.mj_energyPos(m, d)
+            mj.mj_energyVel(m, d)
+            out[i] = d.energy
+        return out
 
     def diverged(self) -> np.ndarray:
         """``(n,)`` bool: the run has tipped over (tilt > ``plant.divergence.tip_angle``), left the ground (neither

@@ -3,7 +3,8 @@
 
 The robot: a chassis on a free joint whose origin is the axle midpoint, two hinge-driven wheels on the axle
 (right at ``y = -L``, left at ``y = +L``; positive speed drives forward) and two frictionless ball casters on the
-centre line. Mass and inertia are placed so that the model's wheel-space inertia equals the paper's J
+centre line, each on a vertical spring (a slide joint) that carries no load at rest, so the wheels carry the
+weight and the springs hold the chassis's pitch. Mass and inertia are placed so that the model's wheel-space inertia equals the paper's J
 (:attr:`ddmr_cli.model.robot.Robot.inertia`): total mass ``m``, total yaw inertia ``I_z`` about the axle
 midpoint, centre of mass on the axle, each wheel's spin inertia ``I_w`` (the wheel body's thin-disc inertia plus
 the joint armature, the reflected motor and gearbox inertia). Each motor is a pair of MuJoCo ``general`` actuators
@@ -105,12 +106,15 @@ class WheelConfig:
 
 @dataclass(frozen=True)
 class CasterConfig:
-    radius: float  # m
-    offset: float  # m
+    radius: float     # m
+    offset: float     # m
+    mass: float       # kg
+    stiffness: float  # N/m
+    damping: float    # N s/m
 
     def __post_init__(self) -> None:
-        positive("plant.caster.radius", self.radius)
-        positive("plant.caster.offset", self.offset)
+        for name in ("radius", "offset", "mass", "stiffness", "damping"):
+            positive(f"plant.caster.{name}", getattr(self, name))
 
 
 @dataclass(frozen=True)
@@ -206,8 +210,9 @@ def check_robot(robot: Robot, config: PhysicsConfig) -> None:
         raise ConfigError("plant.heightfield.resolution", hf.resolution,
                           f"too coarse for the wheel radius: must be <= robot.wheel_radius / 2 = {R / 2:g} m")
     mw = config.wheel.mass
-    if 2 * mw >= robot.mass:
-        raise ConfigError("plant.wheel.mass", mw, f"two wheels must weigh less than robot.mass ({robot.mass:g} kg)")
+    if 2 * (mw + config.caster.mass) >= robot.mass:
+        raise ConfigError("plant.wheel.mass", mw, f"two wheels and two casters must weigh less than robot.mass "
+                                                  f"({robot.mass:g} kg)")
     if disc_inertia(mw, R)[0] > robot.wheel_inertia:
         raise ConfigError("plant.wheel.mass", mw, f"a disc of radius {R:g} m of this mass has more spin inertia "
                                                   f"than robot.wheel_inertia ({robot.wheel_inertia:g} kg m^2)")
@@ -228,9 +233,11 @@ def disc_inertia(mass: float, radius: float) -> tuple[float, float]:
 
 
 def chassis_yaw_inertia(robot: Robot, config: PhysicsConfig) -> float:
-    """The chassis's own yaw inertia [kg m^2]: ``I_z`` minus both wheels' (diametral inertia plus ``m_w L^2``)."""
+    """The chassis's own yaw inertia [kg m^2]: ``I_z`` minus both wheels' (diametral inertia plus ``m_w L^2``) and
+    both casters' (point masses at the caster offset)."""
     return robot.yaw_inertia - 2 * (disc_inertia(config.wheel.mass, robot.wheel_radius)[1]
-                                    + config.wheel.mass * robot.half_track**2)
+                                    + config.wheel.mass * robot.half_track**2
+                                    + config.caster.mass * config.caster.offset**2)
 
 
 def motor_gains(robot: Robot) -> tuple[float, float]:
@@ -356,7 +363,8 @@ def mjcf(robot: Robot, terrain: Terrain, config: PhysicsConfig, layout: FieldLay
     R, L = robot.wheel_radius, robot.half_track
     w, c, ch, ct = config.wheel, config.caster, config.chassis, config.contact
     spin, diam = disc_inertia(w.mass, R)
-    m_c = robot.mass - 2 * w.mass
+    m_c = robot.mass - 2 * w.mass - 2 * c.mass
+    point = c.mass * c.radius**2 * 2 / 5  # a caster ball's own inertia
     I_cz = chassis_yaw_inertia(robot, config)
     # roll and pitch of the chassis as a flat plate of its height (only the triangle inequality matters here)
     I_cxy = I_cz / 2 + m_c * ch.height**2 / 12
@@ -395,8 +403,12 @@ def mjcf(robot: Robot, terrain: Terrain, config: PhysicsConfig, layout: FieldLay
     z_box = ch.clearance + ch.height / 2 - R
     casters = "".join(
         f'''
-      <geom name="caster_{name}" type="sphere" size="{c.radius!r}" pos="{x!r} 0 {c.radius - R!r}"
-            contype="1" conaffinity="0" condim="1" priority="1" solref="{solref}"/>'''
+      <body name="caster_{name}" pos="{x!r} 0 {c.radius - R!r}">
+        <joint name="caster_{name}" type="slide" axis="0 0 1" stiffness="{c.stiffness!r}" damping="{c.damping!r}"/>
+        <inertial pos="0 0 0" mass="{c.mass!r}" diaginertia="{point!r} {point!r} {point!r}"/>
+        <geom name="caster_{name}" type="sphere" size="{c.radius!r}" contype="1" conaffinity="0" condim="1"
+              priority="1" solref="{solref}"/>
+      </body>'''
         for name, x in (("front", c.offset), ("rear", -c.offset)))
     return f'''<mujoco model="ddmr">
   <compiler angle="radian" autolimits="true"/>
