@@ -9,6 +9,18 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
+
+# Property tests gate merges, so by default they are deterministic: ``derandomize`` draws each test's examples
+# from a seed fixed by the test itself (the same examples on every run and machine, whatever the order, -n or
+# the database), a failure prints the blob that replays it (``@reproduce_failure``), and the one health check
+# that times things (``too_slow``: data generation slower than a threshold) is off, since a busy CI machine
+# would fail it by load alone. ``pytest --hypothesis-profile=explore`` searches with fresh random examples (a
+# nightly hunt; run it with ``--hypothesis-seed=N`` to replay one search).
+settings.register_profile("gate", derandomize=True, print_blob=True, database=None, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("explore", derandomize=False, print_blob=True, database=None, deadline=None)
+settings.load_profile("gate")
 
 
 def ddmr_executable() -> str:

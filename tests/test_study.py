@@ -296,7 +296,7 @@ def test_quick_study_end_to_end(tmp_path):
     assert (points["runs"] == 4 * 2 * 50).all()
     report = (out / "report.md").read_text()
     assert "# Robustness of the paper's claims" in report and "Share of the box" in report
-    assert "Hydra's Optuna sweeper" in report and "**Conclusion: Table 4 is" in report
+    assert "ddmr's Optuna sweeper" in report and "**Conclusion: Table 4 is" in report
     for png in ("oat", "morris", "sobol", "nn_map", "calibration"):
         assert (out / "figures" / f"{png}.png").stat().st_size > 1000, png
     # resume: the same command again skips every job (complete, same config) and rewrites the report

@@ -1,4 +1,4 @@
-"""The sensitivity study's calibration search through Hydra's Optuna sweeper (docs/model.md §11): the search
+"""The sensitivity study's calibration search through ddmr's Optuna sweeper (docs/model.md §11): the search
 space is the box, the same seed gives the same trials, the objective is the Table 4 distance (capped, never NaN),
 a trial's reading is checked against the box, the warm start picks the uniform sample's best readings, bad
 settings are one line and exit 2, and the global analyses take clipped statistics."""
@@ -33,7 +33,7 @@ def quick():
 
 
 def _ask(cfg, seed: int, trials: int, batch: int) -> list[dict]:
-    """Trials as Hydra's Optuna sweeper asks them: ``batch`` at a time from a seeded TPE sampler, the reading drawn
+    """Trials as ddmr's Optuna sweeper asks them: ``batch`` at a time from a seeded TPE sampler, the reading drawn
     by the sweeper's custom_search_space, told a value that depends on the reading."""
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed), direction="minimize")
@@ -67,6 +67,17 @@ def test_the_search_space_is_the_box(cfg, quick):
     assert getattr(log_axis, "log", type(log_axis).__name__ == "LogUniformDistribution")
     linear = trial.distributions[search.PREFIX + "nn_center_range"]
     assert not getattr(linear, "log", type(linear).__name__ == "LogUniformDistribution")
+
+
+def test_the_search_runs_on_ddmrs_optuna_sweeper_with_the_box_as_its_space():
+    from hydra.utils import instantiate
+
+    cfg = compose_config(["+experiment=sensitivity_calibration"], return_hydra_config=True)
+    sweeper = instantiate(cfg.hydra.sweeper)
+    assert type(sweeper).__name__ == "DdmrOptunaSweeper" and sweeper.extend is search.suggest_reading
+    assert type(sweeper.sampler_config).__name__ == "TPESampler" and sweeper.directions == ["minimize"]
+    assert sweeper.storage.startswith("sqlite:///") and sweeper.storage.endswith("/study.db")
+    assert sweeper.n_jobs == cfg.study.calibration.batch and not sweeper.params
 
 
 def test_the_same_seed_gives_the_same_trials(cfg):

@@ -1,11 +1,17 @@
-"""Gain tuning through Hydra's Optuna sweeper (ddmr_cli/study/tuning.py, docs/model.md §9): the search spaces name
-real keys, bad input is one line and exit 2, the objective's penalty rule, a study end to end (joblib and basic
-launchers give the same trials), resumption continuing the trial count, the report at tuned gains."""
+"""Gain tuning through ddmr's Optuna sweeper (hydra/sweeper=ddmr_optuna; ddmr_cli/study/tuning.py, docs/model.md §9):
+the search spaces name real keys, bad input is one line and exit 2, the objective's penalty rule, a study end to
+end (joblib and basic launchers give the same trials), resumption continuing the trial count (also after a
+SIGKILL mid-study), the study database opened by ``optuna.load_study``, the report at tuned gains."""
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import signal
+import sqlite3
+import subprocess
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -14,7 +20,7 @@ from conftest import catalogue
 import yaml
 from omegaconf import OmegaConf
 
-from conftest import run_ddmr
+from conftest import ddmr_executable, run_ddmr
 
 pytest.importorskip("optuna", reason="the tune extra is not installed (pip install -e '.[tune]')")
 
@@ -51,6 +57,18 @@ def test_the_study_settings_are_the_same_for_every_controller():
                 "tuning.saturation_limit", "tuning.held_out.base_seed", "tuning.held_out.n_runs",
                 "hydra.sweeper.n_trials", "hydra.sweeper.sampler.seed"):
         assert len({str(OmegaConf.select(c, key)) for c in studies}) == 1, key
+
+
+@pytest.mark.parametrize("objective, sampler, directions", [("deviation", "TPESampler", ["minimize"]),
+                                                            ("pareto", "NSGAIISampler", ["minimize", "minimize"])])
+def test_every_study_is_ddmrs_optuna_sweeper_on_sqlite(objective, sampler, directions):
+    from hydra.utils import instantiate
+
+    cfg = compose_config(["+tune=smc_ndo", f"objective={objective}"], return_hydra_config=True)
+    sweeper = instantiate(cfg.hydra.sweeper)  # as Hydra instantiates it (the sampler node with it)
+    assert type(sweeper).__name__ == "DdmrOptunaSweeper" and type(sweeper.sampler_config).__name__ == sampler
+    assert sweeper.directions == directions and sweeper.storage == f"sqlite:///{cfg.hydra.sweep.dir}/study.db"
+    assert sweeper.study_name == f"smc_ndo-{objective}" and sweeper.n_jobs == cfg.tuning.batch
 
 
 # --- bad input ------------------------------------------------------------------------------------------------
@@ -215,3 +233,69 @@ def test_the_pareto_mode_returns_a_front_of_non_dominated_trials(tmp_path):
         assert not any(b[0] <= a[0] and b[1] <= a[1] and b != a for b in values)
     trials = _trials(study)
     assert {"value_0", "value_1"} <= set(trials.columns) and (trials["state"] == "COMPLETE").all()
+
+
+def _states_in_db(db: Path) -> dict[str, int]:
+    """Trials per state in a study database, read with plain sqlite3 while the sweeper writes it."""
+    if not db.is_file():
+        return {}
+    try:
+        with sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1.0) as con:
+            return dict(con.execute("SELECT state, count(*) FROM trials GROUP BY state").fetchall())
+    except sqlite3.Error:  # the schema not created yet, or the file locked for a moment
+        return {}
+
+
+@pytest.mark.slow
+def test_a_study_killed_by_sigkill_mid_study_resumes_without_losing_or_repeating_trials(tmp_path):
+    import optuna
+
+    out = tmp_path / "smc_ndo"
+    budget = 12
+    command = ["run", "-m", "+tune=smc_ndo", "launcher=basic", *TINY, f"tuning.n_trials={budget}",
+               f"hydra.sweep.dir={out}"]
+    env = {**os.environ, "PYTHONHASHSEED": "0"}
+    proc = subprocess.Popen([ddmr_executable(), *command], cwd=tmp_path, env=env, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 300
+    try:
+        # mid-study: two trials told their values, the next batch asked and running
+        while not ((n := _states_in_db(out / TU.STORAGE_FILE)).get("COMPLETE", 0) >= 2 and n.get("RUNNING", 0)):
+            assert proc.poll() is None, "the study ended before it could be killed"
+            assert time.monotonic() < deadline, "no trial completed in 300 s"
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the session and anything it started, mid-study
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    name = json.loads((out / TU.STUDY_FILE).read_text())["study_name"]
+    killed = optuna.load_study(study_name=name, storage=f"sqlite:///{out / TU.STORAGE_FILE}")
+    before = {t.number: t for t in killed.get_trials(deepcopy=False)}
+    done = [n for n, t in before.items() if t.state == optuna.trial.TrialState.COMPLETE]
+    running = [n for n, t in before.items() if t.state == optuna.trial.TrialState.RUNNING]
+    assert 2 <= len(done) < budget and running, {n: t.state.name for n, t in before.items()}
+
+    again = run_ddmr(command, cwd=tmp_path)  # the same command
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert (f"resuming study {name}: {len(done)}/{budget} trials done ({len(running)} left running by a killed "
+            f"session marked failed)") in again.stdout + again.stderr
+    study = optuna.load_study(study_name=name, storage=f"sqlite:///{out / TU.STORAGE_FILE}")
+    trials = study.get_trials(deepcopy=False)
+    states = {t.number: t.state.name for t in trials}
+    assert sorted(states) == list(range(len(trials)))  # numbered on from the killed session, no gap
+    complete = [t for t in trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(complete) == budget  # none lost, none run beyond the budget
+    for n in done:  # the killed session's complete trials are kept as they were
+        assert states[n] == "COMPLETE" and study.trials[n].values == before[n].values
+    for n in running:  # what it left running is failed and marked, not counted
+        assert states[n] == "FAIL" and study.trials[n].user_attrs == {"killed": True}
+    params = [tuple(sorted(t.params.items())) for t in complete]
+    assert len(set(params)) == budget  # no trial repeated
+    table = _trials(out)
+    assert list(table["killed"]) == [n in running for n in sorted(states)]
+    rows = table[table["state"] == "COMPLETE"]
+    assert rows["dir"].notna().all() and rows["dir"].is_unique  # each complete trial has its own job dir
+    for _, row in rows.iterrows():
+        record = json.loads((out / row["dir"] / TU.TRIAL_FILE).read_text())
+        assert math.isclose(record["values"][0], row["value_0"], rel_tol=1e-12)
+    assert math.isclose(study.best_value, min(t.values[0] for t in complete), rel_tol=1e-12)

@@ -11,14 +11,17 @@ from pathlib import Path
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.plugins import Plugins
+from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import DdmrOptunaSweeper
 from hydra_plugins.ddmr_sweeper.ddmr_sweeper import DdmrSweeper
 from omegaconf import DictConfig
 
 from ddmr_cli import config  # noqa: F401  (registers the config schemas)
 from ddmr_cli.job import JobPlace, run_job
 
-# hydra/sweeper=ddmr (conf/launcher/*.yaml): Hydra's plugin scan does not see an editable install's hydra_plugins
+# hydra/sweeper=ddmr (conf/launcher/*.yaml) and hydra/sweeper=ddmr_optuna (conf/tuning, the calibration search):
+# Hydra's plugin scan does not see an editable install's hydra_plugins
 Plugins.instance().register(DdmrSweeper)
+Plugins.instance().register(DdmrOptunaSweeper)
 
 
 def job_place() -> JobPlace:

@@ -35,7 +35,7 @@ commands:
                           (default PATH: the latest sweep under ./outputs)
   bench [--quick]         print engine and end-to-end performance figures for this machine
   sensitivity [--out DIR] [OVERRIDES]  the sensitivity of the paper's claims and the reading nearest its Table 4
-                          (every stage a sweep, the calibration Hydra's Optuna sweeper; study=quick for the CI
+                          (every stage a sweep, the calibration ddmr's Optuna sweeper; study=quick for the CI
                           size; docs/model.md §11)
   --version               print the version
 """

@@ -1,7 +1,7 @@
 """``ddmr sensitivity``: the whole sensitivity study of the paper's claims (docs/model.md §11), stage after stage.
 
 Each stage is an ordinary ``ddmr run -m +experiment=sensitivity_<stage>`` sweep (same validation, launchers,
-resume and output dirs), into ``OUT/<stage>``; the calibration stage's sweep is Hydra's Optuna sweeper
+resume and output dirs), into ``OUT/<stage>``; the calibration stage's sweep is ddmr's Optuna sweeper
 (:mod:`ddmr_cli.study.search`). The driver only chains them: Morris's most influential parameters become the Sobol
 stage's (``study.sobol.parameters``), the ``lhs`` stage's table warm-starts the calibration search
 (``study.calibration.warm_start_from``), the calibration's best reading joins the ``points`` stage (50 seeds).

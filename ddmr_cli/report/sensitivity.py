@@ -371,7 +371,7 @@ def calibration_lines(result: dict, faithful: dict | None, points: "pd.DataFrame
     seeds = f" at {int(cfg.run.n_runs)} seeds" if cfg is not None else ""
     if search is not None:
         sessions = search.get("sessions") or [{}]
-        how = (f"Searched by Hydra's Optuna sweeper (TPE sampler seeded {sessions[0].get('sampler_seed')}, "
+        how = (f"Searched by ddmr's Optuna sweeper (TPE sampler seeded {sessions[0].get('sampler_seed')}, "
                f"{sessions[0].get('batch', '?')} trials at a time) over the box's {len(search.get('parameters', []))} "
                f"global parameters: {result['usable']} usable of {result['samples']} trials{seeds}, each a sample as "
                f"any other (4 controllers x 2 scenarios).")

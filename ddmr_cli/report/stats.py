@@ -26,6 +26,8 @@ import numpy as np
 N_BOOT = 10_000
 BOOT_SEED = 20_240_917
 ALPHA = 0.05
+#: The confidence level of the bootstrap intervals (the verdicts read the 95 % ones).
+CI_LEVEL = 0.95
 #: Fewer paired seeds than this cannot reach p < 0.05 in a two-sided Wilcoxon test: no verdict either way.
 MIN_PAIRS = 6
 
@@ -71,8 +73,15 @@ class Paired:
                 "wilcoxon_statistic": self.statistic, "p_value": self.p}
 
 
-def paired(a, b) -> Paired | None:
-    """Compare two per-seed pandas Series (index: seed); None when no seed is common to both."""
+def paired(a, b, level: float = CI_LEVEL) -> Paired | None:
+    """Compare two per-seed pandas Series (index: seed); None when no seed is common to both.
+
+    ``level``: the confidence level of the percentile bootstrap intervals (default :data:`CI_LEVEL`), which are
+    the ``(1 - level) / 2`` and ``(1 + level) / 2`` quantiles of the resampled statistic."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level must be in (0, 1), got {level!r}")
+    central = 100.0 * level  # 95.0 exactly for 0.95: the tails below are 2.5 and 97.5 exactly
+    tails = [(100.0 - central) / 2.0, (100.0 + central) / 2.0]
     joined = a.rename("a").to_frame().join(b.rename("b"), how="inner").dropna()
     n = len(joined)
     if n == 0:
@@ -81,11 +90,11 @@ def paired(a, b) -> Paired | None:
     rng = np.random.default_rng(BOOT_SEED)
     idx = rng.integers(0, n, size=(N_BOOT, n))
     ma, mb = x[idx].mean(axis=1), y[idx].mean(axis=1)
-    diff_ci = tuple(float(v) for v in np.percentile(mb - ma, [2.5, 97.5]))
+    diff_ci = tuple(float(v) for v in np.percentile(mb - ma, tails))
     with np.errstate(divide="ignore", invalid="ignore"):
         red = 1.0 - mb / ma
     red = red[np.isfinite(red)]
-    red_ci = tuple(float(v) for v in np.percentile(red, [2.5, 97.5])) if red.size else (math.nan, math.nan)
+    red_ci = tuple(float(v) for v in np.percentile(red, tails)) if red.size else (math.nan, math.nan)
     mean_a, mean_b = float(x.mean()), float(y.mean())
     reduction = 1.0 - mean_b / mean_a if mean_a != 0 else math.nan
     p, stat = _wilcoxon(y - x)

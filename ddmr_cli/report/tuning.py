@@ -124,7 +124,7 @@ class TuningReport:
         info = self.studies[0].info
         cfg = self.studies[0].config()
         self.add("## Studies", "",
-                 f"Each study is Hydra's Optuna sweeper over the controller's gains (`ddmr run -m +tune=<controller>`; "
+                 f"Each study is ddmr's Optuna sweeper over the controller's gains (`ddmr run -m +tune=<controller>`; "
                  f"search spaces in conf/tune). A trial simulates the tuning seeds {int(cfg.run.base_seed)}–"
                  f"{int(cfg.run.base_seed) + int(cfg.run.n_runs) - 1} in {', '.join(cfg.tuning.scenarios)} and scores "
                  f"the mean `{info.get('metric', TU.OBJECTIVE_METRIC)}` over the runs and scenarios; a trial with a "

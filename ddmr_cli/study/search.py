@@ -1,7 +1,7 @@
-"""The calibration search of the sensitivity study through Hydra's Optuna sweeper (docs/model.md §11, stage
+"""The calibration search of the sensitivity study through ddmr's Optuna sweeper (docs/model.md §11, stage
 ``calibration``): the reading of the box nearest the paper's Table 4.
 
-``ddmr run -m +experiment=sensitivity_calibration`` runs Hydra's Optuna sweeper with a seeded TPE sampler, as the
+``ddmr run -m +experiment=sensitivity_calibration`` runs ddmr's Optuna sweeper with a seeded TPE sampler, as the
 gain tuning does (docs/model.md §9; :mod:`ddmr_cli.study.tuning`): the sweeper asks ``study.calibration.batch``
 trials at a time, :func:`suggest_reading` (the sweeper's ``custom_search_space``) draws each trial's reading from
 the box (``+study.reading.<parameter>=value``: log axes log-uniform, choices categorical, ``study.vary``
@@ -137,6 +137,9 @@ def check_search(cfg: DictConfig) -> None:
     from ddmr_cli.checks import integer
     from ddmr_cli.errors import ConfigError
 
+    from ddmr_cli.compat import require_optuna
+
+    require_optuna()
     c = cfg.study.calibration
     integer("study.calibration.trials", c.trials, 1)
     integer("study.calibration.batch", c.batch, 1)
@@ -250,6 +253,8 @@ def trial_rows(sweep_dir: Path, rows: "pd.DataFrame", complete) -> "pd.DataFrame
         return rows.iloc[:0]
     from optuna.trial import TrialState
 
+    from ddmr_cli.compat import was_enqueued
+
     records = [(frozenset(s.get("overrides", [])), d, s) for d, s in complete]
     out = []
     for t in load_study(sweep_dir, info["study_name"]).get_trials(deepcopy=False):
@@ -264,7 +269,7 @@ def trial_rows(sweep_dir: Path, rows: "pd.DataFrame", complete) -> "pd.DataFrame
         row = row.iloc[[0]].copy()
         row["sample"] = t.number
         row["objective"] = float(t.values[0])
-        row["warm_start"] = int("fixed_params" in t.system_attrs)
+        row["warm_start"] = int(was_enqueued(t))
         out.append(row)
     return pd.concat(out, ignore_index=True) if out else rows.iloc[:0]
 

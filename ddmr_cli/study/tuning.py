@@ -1,4 +1,4 @@
-"""Gain tuning through Hydra's Optuna sweeper (docs/model.md §9): the trial, the study's checks and its tables.
+"""Gain tuning through ddmr's Optuna sweeper (docs/model.md §9): the trial, the study's checks and its tables.
 
 ``ddmr run -m +tune=<controller>`` composes a study (conf/tune/<controller>.yaml: the search space as the
 sweeper's ``hydra.sweeper.params``; conf/tuning/default.yaml: budget, seeds, scenarios, storage). Hydra's Optuna
@@ -251,6 +251,9 @@ def check_study(cfg: DictConfig, overrides=()) -> list[Interval]:
     from ddmr_cli.checks import finite
     from ddmr_cli.config import validate_config
 
+    from ddmr_cli.compat import require_optuna
+
+    require_optuna()
     t = cfg.tuning
     one_of("tuning.objective", t.objective, OBJECTIVES)
     integer("tuning.n_trials", t.n_trials, 1)
@@ -325,10 +328,11 @@ def close_killed_trials(study) -> int:
     """Mark the trials a killed session left RUNNING as FAIL (user attribute ``killed``); returns how many."""
     from optuna.trial import TrialState
 
-    stale = [t for t in study.get_trials(deepcopy=False) if t.state == TrialState.RUNNING]
+    from ddmr_cli.compat import mark_killed
+
+    stale = study.get_trials(deepcopy=False, states=(TrialState.RUNNING,))
     for t in stale:
-        study._storage.set_trial_user_attr(t._trial_id, "killed", True)
-        study._storage.set_trial_state(t._trial_id, TrialState.FAIL)
+        mark_killed(study, t)
     return len(stale)
 
 
@@ -420,11 +424,13 @@ def trials_table(sweep_dir: Path, study) -> "pd.DataFrame":
     (feasible, violation and why, deviation, chattering, saturation, diverged runs, its dir)."""
     import pandas as pd
 
+    from ddmr_cli.compat import KILLED_ATTR
+
     records = trial_dirs(sweep_dir)
     rows = []
     for t in study.get_trials(deepcopy=False):
         job_dir, rec = trial_record(records, t.params)
-        row = {"number": t.number, "state": t.state.name, "killed": bool(t.user_attrs.get("killed", False))}
+        row = {"number": t.number, "state": t.state.name, "killed": bool(t.user_attrs.get(KILLED_ATTR, False))}
         values = t.values or []
         row.update({f"value_{i}": v for i, v in enumerate(values)})
         row.update({k: v for k, v in t.params.items()})

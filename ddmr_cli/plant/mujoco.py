@@ -1,0 +1,295 @@
+"""The rigid-body plant: the paper's robot as a MuJoCo model on a heightfield (issue 30; docs/model.md, "Physics
+plant (MuJoCo)").
+
+:class:`MujocoPlant` is an external plant the engine steps from Python: a batch of ``n`` runs, each its own MuJoCo
+model (its own seeded ground) and data. Each plant step holds the applied motor voltages, runs ``dt / timestep``
+MuJoCo steps (the DC-motor law is the actuators' affine form, so back-EMF and damping act at every MuJoCo step),
+then reads the true state and the lumped disturbance of the paper's (8). The runs advance in worker threads
+(``mujoco.mj_step`` releases the GIL); a run touches only its own model and data, so its numbers do not depend
+on the thread count.
+
+Needs the optional extra ``physics`` (``pip install -e ".[physics]"``).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Mapping
+
+import numpy as np
+
+from ddmr_cli.compiled import plain
+from ddmr_cli.errors import ConfigError
+from ddmr_cli.model.robot import NominalModel, Robot, nominal_acceleration
+from ddmr_cli.model.terrain import Terrain
+from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_robot, elevation_range, field_layout, heightfield,
+                                         mjcf, normalised, substeps)
+
+__all__ = ["MujocoPlant", "import_mujoco", "EXTRA_HINT"]
+
+#: the one line a missing extra prints
+EXTRA_HINT = 'needs MuJoCo, the optional extra: pip install -e ".[physics]"'
+
+
+def import_mujoco():
+    """The ``mujoco`` module, or a :class:`ConfigError` naming the extra that installs it."""
+    try:
+        import mujoco
+    except ImportError:
+        raise ConfigError("plant", "mujoco", EXTRA_HINT) from None
+    return mujoco
+
+
+class MujocoPlant:
+    """A batch of runs of the robot on its own seeded ground, stepped by the engine (the external plant contract).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot (conf/robot): mass, inertias, wheel radius, track, motor constants.
+    terrain : Terrain
+        The zones (conf/terrain): their starts are distances along x from ``plant.heightfield.origin``; roughness
+        sets each zone's height SD, ``mu`` its rolling friction.
+    config : PhysicsConfig or mapping
+        The plant's own parameters (conf/plant/mujoco.yaml).
+    dt : float
+        The plant step [s] (``simulation.dt``): a whole multiple of ``plant.timestep``.
+
+    Attributes
+    ----------
+    dt : float
+        The plant step [s].
+    xml : str
+        The generated MJCF (the heightfields' data are set per run at :meth:`reset`).
+
+    Notes
+    -----
+    Call :meth:`reset` before the first :meth:`step`; after each :meth:`step`, :meth:`state`,
+    :meth:`true_disturbance` and :meth:`diverged` describe that step. A diverged run is no longer stepped: its
+    state stays where it was when it diverged and its disturbance is NaN.
+    """
+
+    def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float) -> None:
+        self._mj = mj = import_mujoco()
+        if not isinstance(config, PhysicsConfig):
+            config = PhysicsConfig.from_mapping(config)
+        check_robot(robot, config)
+        self.robot, self.terrain, self.config = robot, terrain, config
+        self.dt = float(dt)
+        self._substeps = substeps(config, self.dt)
+        self._layout = field_layout(terrain, config.heightfield)
+        self._span = elevation_range(robot, terrain, config.heightfield)
+        self.xml = mjcf(robot, terrain, config, self._layout)
+        self._model = mj.MjModel.from_xml_string(self.xml)
+        m = self._model
+        self._hfields = [(int(m.hfield_adr[i]), int(m.hfield_ncol[i])) for i in range(m.nhfield)]
+        joints = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, f"wheel_{s}") for s in ("R", "L")]
+        self._wheel_dof = np.array([m.jnt_dofadr[j] for j in joints])
+        self._caster_qpos = np.array([m.jnt_qposadr[mj.mj_name2id(m, mj.mjtObj.mjOBJ_JOINT, f"caster_{s}")]
+                                      for s in ("front", "rear")])
+        self._spec = int(mj.mjtState.mjSTATE_QPOS | mj.mjtState.mjSTATE_QVEL)
+        self._nq = m.nq
+        self._nominal = NominalModel.from_robot(robot)
+        self._threads = config.threads or len(os.sched_getaffinity(0))
+        self._settle_steps = int(round(config.settle_time / config.timestep))
+        self._airborne_steps = max(1, int(math.ceil(config.divergence.airborne_time / self.dt - 1e-9)))
+        self._bad_qacc = int(mj.mjtWarning.mjWARN_BADQACC)
+        self._n = 0
+
+    # -- the batch -------------------------------------------------------------------------------------------
+
+    def heights(self, seed: int) -> np.ndarray:
+        """The ground of ``seed`` [m], shape ``(nrow, ncol)``, rows along y and columns along x
+        (:func:`ddmr_cli.plant.mujoco_model.heightfield`)."""
+        return heightfield(seed, self.robot, self.terrain, self.config.heightfield, self._layout)
+
+    def field_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """The heightfield's sample coordinates ``(x, y)`` [m]."""
+        return self._layout.x, self._layout.y
+
+    def _model_for(self, seed: int):
+        model = copy.deepcopy(self._model)
+        data = normalised(self.heights(seed), self._span).astype(np.float32)
+        for i, (adr, ncol) in enumerate(self._hfields):
+            c0 = self._layout.columns[i]
+            model.hfield_data[adr:adr + data.shape[0] * ncol] = data[:, c0:c0 + ncol].ravel()
+        return model
+
+    def reset(self, seeds: np.ndarray, pose0: np.ndarray, w0: np.ndarray) -> None:
+        """Start a batch: each run's ground from its seed, the robot settled onto it at ``pose0`` and rolling
+        without slip at wheel speeds ``w0``.
+
+        Parameters
+        ----------
+        seeds : int array (n,)
+        pose0 : array (n, 3)
+            x [m], y [m], theta [rad] of the axle midpoint.
+        w0 : array (n, 2)
+            Wheel speeds (right, left) [rad/s].
+        """
+        mj = self._mj
+        seeds = np.asarray(seeds).reshape(-1)
+        n = len(seeds)
+        pose0 = np.broadcast_to(np.asarray(pose0, dtype=float), (n, 3))
+        w0 = np.broadcast_to(np.asarray(w0, dtype=float), (n, 2))
+        self._n = n
+        self._models = [self._model_for(int(s)) for s in seeds]
+        self._datas = [mj.MjData(m) for m in self._models]
+        R, L = self.robot.wheel_radius, self.robot.half_track
+        for m, d, (x, y, th), (wr, wl) in zip(self._models, self._datas, pose0, w0):
+            d.ctrl[:] = (0.0, 0.0, 1.0, 1.0)
+            d.qpos[0:3] = (x, y, R + self._ground_at(m, x, y) + 1e-3)
+            d.qpos[3:7] = (math.cos(th / 2), 0.0, 0.0, math.sin(th / 2))
+            mj.mj_forward(m, d)
+            held = np.r_[0, 1, 5, self._wheel_dof]  # x, y, yaw rate, wheels held still: z, roll, pitch settle
+            for settled in range(2):
+                for _ in range(self._settle_steps):
+                    mj.mj_step(m, d)
+                    d.qvel[held] = 0.0
+                # the caster springs carry no load at rest: their reference is where the first settling left them
+                m.qpos_spring[self._caster_qpos] = d.qpos[self._caster_qpos]
+            v, om = R * (wr + wl) / 2, R * (wr - wl) / (2 * L)
+            yaw = _yaw(d.qpos[3:7])
+            d.qvel[:] = 0.0
+            d.qvel[0:2] = v * math.cos(yaw), v * math.sin(yaw)
+            d.qvel[5] = om
+            d.qvel[self._wheel_dof] = wr, wl
+            d.time = 0.0
+            mj.mj_forward(m, d)
+        self._state = np.array([np.r_[d.qpos, d.qvel] for d in self._datas])
+        self._qpos, self._qvel = self._state[:, :self._nq], self._state[:, self._nq:]
+        self._touch = np.ones((n, 2))
+        self._theta = np.array([_yaw(q[3:7]) for q in self._qpos])
+        self._distance = np.zeros(n)
+        self._d = np.zeros((n, 2))
+        self._diverged = np.zeros(n, dtype=bool)
+        self._airborne = np.zeros(n, dtype=np.int64)
+        self._check_divergence()
+
+    def _ground_at(self, model, x: float, y: float) -> float:
+        """The ground height [m] at the grid sample nearest ``(x, y)`` of ``model``'s heightfields."""
+        lay = self._layout
+        col = int(np.clip(round((x - lay.x_min) / lay.dx), 0, lay.ncol - 1))
+        row = int(np.clip(round((y + lay.half_width) / lay.dy), 0, lay.nrow - 1))
+        zone = min(int(np.searchsorted(lay.columns, col, side="right")) - 1, len(self._hfields) - 1)
+        adr, ncol = self._hfields[zone]
+        return (float(model.hfield_data[adr + row * ncol + col - lay.columns[zone]]) - 0.5) * self._span
+
+    # -- a step --------------------------------------------------------------------------------------------
+
+    def _advance(self, runs: np.ndarray, ctrl: np.ndarray) -> None:
+        """Step ``runs`` (one worker's share): hold ``ctrl``, ``dt / timestep`` MuJoCo steps, read the state."""
+        mj, nsub, spec, state, touch, bad = self._mj, self._substeps, self._spec, self._state, self._touch, self._bad_qacc
+        for i in runs:
+            m, d = self._models[i], self._datas[i]
+            d.ctrl[:] = ctrl[i]
+            before = d.warning[bad].number
+            mj.mj_step(m, d, nsub)
+            mj.mj_getState(m, d, state[i], spec)
+            touch[i] = d.sensordata
+            if d.warning[bad].number != before:  # MuJoCo found the simulation unstable and reset it
+                state[i] = np.nan
+
+    def step(self, u: np.ndarray, damping_scale: np.ndarray) -> None:
+        """Advance every run by one plant step ``dt``.
+
+        Parameters
+        ----------
+        u : array (n, 2)
+            The applied motor voltages (right, left) [V], held over the step (after the driver's limit).
+        damping_scale : array (n,)
+            ``b = B_true / B_nom`` (scenario 2's uncertainty; 1.0 when none), held over the step.
+        """
+        u = np.broadcast_to(np.asarray(u, dtype=float), (self._n, 2))
+        b = np.broadcast_to(np.asarray(damping_scale, dtype=float), (self._n,))
+        ctrl = np.column_stack([u, b, b])  # the motors' voltages and the dampers' scale (motor_gains)
+        self._diverged |= ~np.isfinite(ctrl).all(axis=1)  # a non-finite voltage or damping: diverged, not stepped
+        w_before = self._qvel[:, self._wheel_dof].copy()
+        xy_before = self._qpos[:, 0:2].copy()
+        live = np.flatnonzero(~self._diverged)
+        shares = [s for s in np.array_split(live, min(self._threads, max(len(live), 1))) if len(s)]
+        if len(shares) <= 1:
+            for s in shares:
+                self._advance(s, ctrl)
+        else:
+            for f in [self._pool().submit(self._advance, s, ctrl) for s in shares]:
+                f.result()
+        w = self._qvel[:, self._wheel_dof]
+        a_R, a_L = plain(nominal_acceleration)(self._nominal, w_before[:, 0], w_before[:, 1], u[:, 0], u[:, 1])
+        d = (w - w_before) / self.dt - np.stack([a_R, a_L], axis=1)
+        d[self._diverged] = np.nan
+        self._d = d
+        live_mask = ~self._diverged
+        self._distance[live_mask] += np.hypot(*(self._qpos[live_mask, 0:2] - xy_before[live_mask]).T)
+        yaw = np.array([_yaw(q[3:7]) for q in self._qpos])
+        step = np.where(live_mask, np.angle(np.exp(1j * (yaw - self._theta))), 0.0)
+        self._theta = self._theta + np.nan_to_num(step, nan=0.0)
+        self._airborne = np.where((self._touch > 0).any(axis=1), 0, self._airborne + 1)
+        self._check_divergence()
+
+    def _pool(self) -> ThreadPoolExecutor:
+        if getattr(self, "_executor", None) is None:
+            self._executor = ThreadPoolExecutor(self._threads, thread_name_prefix="mujoco")
+        return self._executor
+
+    def close(self) -> None:
+        """Stop the worker threads (also done when the plant is garbage-collected)."""
+        executor, self._executor = getattr(self, "_executor", None), None
+        if executor is not None:
+            executor.shutdown()
+
+    def __del__(self) -> None:
+        self.close()
+
+    def _check_divergence(self) -> None:
+        q = self._qpos
+        finite = np.isfinite(q).all(axis=1) & np.isfinite(self._qvel).all(axis=1)
+        # tilt: the angle between the chassis's z axis and the world's, cos = 1 - 2 (q_x^2 + q_y^2)
+        cos_tilt = 1.0 - 2.0 * (q[:, 4] ** 2 + q[:, 5] ** 2)
+        tipped = ~(cos_tilt >= math.cos(self.config.divergence.tip_angle))
+        airborne = self._airborne >= self._airborne_steps
+        self._diverged |= ~finite | tipped | airborne
+
+    # -- what the engine reads --------------------------------------------------------------------------------
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The true state after the last step: ``x``, ``y`` [m] and ``theta`` [rad, continuous, not wrapped] of the
+        axle midpoint, ``distance`` [m] travelled in the plane since :meth:`reset`, each ``(n,)``, and ``w``
+        ``(n, 2)``, the wheel speeds (right, left) [rad/s] relative to the chassis."""
+        return {"x": self._qpos[:, 0].copy(), "y": self._qpos[:, 1].copy(), "theta": self._theta.copy(),
+                "distance": self._distance.copy(), "w": self._qvel[:, self._wheel_dof].copy()}
+
+    def true_disturbance(self) -> np.ndarray:
+        """The lumped disturbance d of the paper's (8) over the last step [rad/s^2], ``(n, 2)``: the measured wheel
+        acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains, ``f(w_k) + g u_k``
+        (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
+        return self._d.copy()
+
+    def energy(self) -> np.ndarray:
+        """``(n, 2)`` each run's gravitational potential and kinetic energy [J] (MuJoCo's ``mj_energyPos`` and
+        ``mj_energyVel``; contact deformation not included): a diagnostic for the energy checks."""
+        mj = self._mj
+        out = np.empty((self._n, 2))
+        for i, (m, d) in enumerate(zip(self._models, self._datas)):
+            # the position-dependent quantities at the current state (what the next step recomputes anyway)
+            mj.mj_kinematics(m, d)
+            mj.mj_comPos(m, d)
+            mj.mj_crb(m, d)
+            mj.mj_energyPos(m, d)
+            mj.mj_energyVel(m, d)
+            out[i] = d.energy
+        return out
+
+    def diverged(self) -> np.ndarray:
+        """``(n,)`` bool: the run has tipped over (tilt > ``plant.divergence.tip_angle``), left the ground (neither
+        wheel touching for ``plant.divergence.airborne_time``) or turned non-finite (or MuJoCo found it unstable)."""
+        return self._diverged.copy()
+
+
+def _yaw(quat: np.ndarray) -> float:
+    """The heading [rad] of a unit quaternion (w, x, y, z): the angle of its x axis in the ground plane."""
+    w, x, y, z = quat
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

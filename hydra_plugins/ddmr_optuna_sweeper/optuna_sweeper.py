@@ -1,0 +1,149 @@
+"""``hydra/sweeper=ddmr_optuna``: an Optuna (>= 4) study whose trials are Hydra jobs.
+
+Written for ddmr against Hydra's public sweeper interface (:class:`hydra.plugins.sweeper.Sweeper`) and Optuna's
+public ask-and-tell API, after the behaviour of Hydra's ``hydra-optuna-sweeper`` (MIT), whose every release pins
+``optuna < 3`` (its main branch has moved to Optuna 4 but is unreleased). What a user knows from that plugin holds:
+
+- the search space ``hydra.sweeper.params`` (and the sweep overrides of the command line, which replace a param of
+  the same key): ``interval(a, b)`` a float (int when both ends are ints), ``tag(log, interval(a, b))`` on a log
+  scale, ``choice(...)`` categorical, ``range(start, stop[, step])`` the values Hydra's ``range`` names (``stop``
+  excluded, as in Hydra's basic sweeper; hydra-optuna-sweeper 1.x also sampled ``stop``), ``shuffle(...)`` of a
+  range categorical; any other override is passed to every trial unchanged;
+- ``custom_search_space``: a dotted path to ``f(config, trial)`` that suggests more parameters on each trial;
+- ``sampler`` (``hydra/sweeper/sampler=tpe|nsgaii|random|cmaes|gp|qmc|grid``), ``direction`` (one, or a list for
+  several objectives), ``storage`` (e.g. ``sqlite:///study.db``) and ``study_name``: an existing study of that
+  name in the storage is loaded and continued, so re-running the same command resumes it; ``n_trials`` trials in
+  batches of ``n_jobs`` (asked together, launched together through the configured launcher);
+- a job's return value is the objective (a float, or a sequence of one float per direction); a job that raised
+  or returned something else is a FAIL trial, and more than ``max_failure_rate`` failures in a batch stop the
+  sweep with the job's own error;
+- ``optimization_results.yaml`` in the sweep dir: the best trial, or the Pareto front.
+
+Differences: a trial's parameters are suggested with ``trial.suggest_*`` (no private Optuna API), the launcher's
+job numbers are the Optuna trial numbers (unique across resumed sessions), and the sampler configs are those of
+Optuna >= 4 (:mod:`.config`).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any, Callable, Dict, List, Optional
+
+from hydra.core.plugins import Plugins
+from hydra.plugins.sweeper import Sweeper
+from hydra.types import HydraContext, TaskFunction
+from hydra.utils import get_method, instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from ._space import Dimension, directions, objective_values, search_space
+
+log = logging.getLogger(__name__)
+
+RESULTS_FILE = "optimization_results.yaml"
+
+
+class DdmrOptunaSweeper(Sweeper):
+    """An Optuna study run as batches of Hydra jobs (see the module docstring)."""
+
+    def __init__(self, sampler: Any, direction: Any, storage: Optional[Any], study_name: Optional[str],
+                 n_trials: int, n_jobs: int, max_failure_rate: float = 0.0,
+                 custom_search_space: Optional[str] = None, params: Optional[DictConfig] = None) -> None:
+        super().__init__()
+        if not 0.0 <= float(max_failure_rate) <= 1.0:
+            raise ValueError(f"hydra.sweeper.max_failure_rate={max_failure_rate!r}: must be in [0, 1]")
+        if int(n_jobs) < 1:
+            raise ValueError(f"hydra.sweeper.n_jobs={n_jobs!r}: must be >= 1")
+        self.sampler_config = sampler
+        self.directions = directions(direction)
+        self.storage = None if storage is None else str(storage)
+        self.study_name = None if study_name is None else str(study_name)
+        self.n_trials, self.n_jobs = int(n_trials), int(n_jobs)
+        self.max_failure_rate = float(max_failure_rate)
+        self.extend: Optional[Callable[[DictConfig, Any], None]] = \
+            get_method(custom_search_space) if custom_search_space else None
+        self.params = params
+        self.config: Optional[DictConfig] = None
+        self.launcher = None
+
+    def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
+        self.config = config
+        self.launcher = Plugins.instance().instantiate_launcher(config=config, hydra_context=hydra_context,
+                                                                task_function=task_function)
+
+    def _sampler(self, dims: Dict[str, Dimension]):
+        sampler = self.sampler_config  # Hydra instantiates the sweeper's nested nodes with it
+        if isinstance(sampler, (DictConfig, dict)):
+            sampler = instantiate(sampler)
+        if callable(sampler) and getattr(sampler, "func", None) is not None:  # the grid: a partial of GridSampler
+            grid = {name: d.grid() for name, d in dims.items()}
+            sampler = sampler(grid)
+            size = 1
+            for values in grid.values():
+                size *= len(values)
+            if size < self.n_trials:
+                log.info("the grid has %d points: %d trials instead of %d", size, size, self.n_trials)
+                self.n_trials = size
+        return sampler
+
+    def _trial_overrides(self, trial, dims: Dict[str, Dimension], fixed: List[str]) -> List[str]:
+        for dim in dims.values():
+            dim.suggest(trial)
+        if self.extend is not None:
+            self.extend(self.config, trial)
+        return [f"{name}={value}" for name, value in trial.params.items()] + fixed
+
+    def sweep(self, arguments: List[str]) -> None:
+        import optuna
+
+        assert self.config is not None and self.launcher is not None, "setup() first"
+        params = [f"{k}={v}" for k, v in (OmegaConf.to_container(self.params) if isinstance(self.params, DictConfig)
+                                          else (self.params or {})).items()]
+        dims, fixed = search_space([*params, *arguments])
+        study = optuna.create_study(study_name=self.study_name, storage=self.storage, sampler=self._sampler(dims),
+                                    directions=self.directions, load_if_exists=True)
+        log.info("Optuna study %s (%s, %s, %s): %d trials in batches of %d", study.study_name, self.storage or "memory",
+                 type(study.sampler).__name__, ", ".join(self.directions), self.n_trials, self.n_jobs)
+        to_go = self.n_trials
+        while to_go > 0:
+            trials = [study.ask() for _ in range(min(to_go, self.n_jobs))]
+            overrides = [self._trial_overrides(t, dims, fixed) for t in trials]
+            returns = self.launcher.launch(overrides, initial_job_idx=trials[0].number)
+            failures = 0
+            for trial, ret in zip(trials, returns):
+                try:
+                    values = objective_values(ret.return_value, len(self.directions))
+                except Exception as exc:  # the job raised (JobReturn re-raises it) or returned no objective
+                    study.tell(trial, state=optuna.trial.TrialState.FAIL)
+                    log.warning("trial %d failed: %s", trial.number, exc)
+                    failures += 1
+                    continue
+                try:
+                    study.tell(trial, values)
+                except RuntimeError as exc:  # the grid sampler's Study.stop once the grid is done: told, then raised
+                    if "Study.stop" not in str(exc):
+                        raise
+            if failures / len(returns) > self.max_failure_rate:
+                log.error("%d of %d trials failed (hydra.sweeper.max_failure_rate=%g)", failures, len(returns),
+                          self.max_failure_rate)
+                for ret in returns:
+                    ret.return_value  # re-raises the job's own error
+                raise RuntimeError(f"{failures} of {len(returns)} trials returned no objective")
+            to_go -= len(trials)
+        self._write_results(study)
+
+    def _write_results(self, study) -> None:
+        import optuna
+
+        done = [t for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))]
+        if not done:
+            return
+        if len(self.directions) == 1:
+            best = study.best_trial
+            results = {"name": "optuna", "best_params": best.params, "best_value": best.value}
+        else:
+            results = {"name": "optuna", "solutions": [{"params": t.params, "values": t.values}
+                                                       for t in study.best_trials]}
+        OmegaConf.save(OmegaConf.create(results), f"{self.config.hydra.sweep.dir}/{RESULTS_FILE}")
+
+
+__all__ = ["DdmrOptunaSweeper", "RESULTS_FILE"]

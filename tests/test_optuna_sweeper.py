@@ -1,0 +1,164 @@
+"""ddmr's Optuna sweeper plugin (hydra/sweeper=ddmr_optuna, hydra_plugins/ddmr_optuna_sweeper) on its own, with a
+toy Hydra app: hydra-optuna-sweeper's search-space grammar, SQLite storage and resume, several objectives, the
+grid sampler, failed trials. The ddmr studies on top of it: tests/test_tuning.py, tests/test_study_search.py."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+import yaml
+
+optuna = pytest.importorskip("optuna", reason="the tune extra is not installed (pip install -e '.[tune]')")
+
+from hydra.core.override_parser.overrides_parser import OverridesParser  # noqa: E402
+from hydra_plugins.ddmr_optuna_sweeper._space import (  # noqa: E402
+    dimension, directions, objective_values, search_space)
+
+APP = '''
+import hydra
+from hydra.core.plugins import Plugins
+from hydra_plugins.ddmr_optuna_sweeper import config  # noqa: F401 (hydra/sweeper=ddmr_optuna)
+from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import DdmrOptunaSweeper
+
+Plugins.instance().register(DdmrOptunaSweeper)
+
+
+@hydra.main(version_base="1.3", config_path=".", config_name="config")
+def main(cfg):
+    if cfg.c == "boom":
+        raise RuntimeError("boom trial")
+    value = (cfg.x - 0.3) ** 2 + cfg.y
+    return [value, -cfg.x] if cfg.two else value
+
+
+main()
+'''
+
+CONFIG = '''
+defaults:
+  - override hydra/sweeper: ddmr_optuna
+  - _self_
+x: 0.0
+y: 1
+c: a
+two: false
+hydra:
+  sweep:
+    dir: sweep
+    subdir: ${hydra.job.num}
+  sweeper:
+    storage: sqlite:///study.db
+    study_name: toy
+    n_trials: 6
+    n_jobs: 2
+    sampler:
+      seed: 0
+    params:
+      x: interval(-1.0, 1.0)
+      y: range(1, 4)
+      c: choice(a, b)
+'''
+
+
+def _parse(text: str):
+    return dimension(OverridesParser.create().parse_override(text))
+
+
+def test_the_grammar_of_hydra_optuna_sweeper():
+    x = _parse("x=interval(-1, 1.5)")
+    assert (x.kind, x.low, x.high, x.log) == ("float", -1.0, 1.5, False)
+    assert _parse("n=interval(1, 8)").kind == "float"  # Hydra's grammar reads an interval's ends as floats
+    g = _parse("g=tag(log, interval(0.01, 10))")
+    assert (g.kind, g.low, g.high, g.log) == ("float", 0.01, 10.0, True)
+    c = _parse("c=choice(a, 2, 0.5, true)")
+    assert c.kind == "categorical" and c.choices == ("a", 2, 0.5, True)
+    r = _parse("r=range(1, 10, 3)")  # Hydra's range: 1, 4, 7 (stop excluded, as the basic sweeper runs it)
+    assert (r.kind, r.low, r.high, r.step) == ("int", 1, 7, 3) and r.grid() == [1, 4, 7]
+    assert _parse("r=range(5, 0, -2)").grid() == [1, 3, 5]
+    f = _parse("f=range(0.0, 1.0, 0.25)")
+    assert (f.kind, f.low, f.high, f.step) == ("float", 0.0, 0.75, 0.25)
+    assert _parse("s=shuffle(range(1, 4))").kind == "categorical"
+    assert _parse("k=3") is None  # a plain override: passed to every trial
+    dims, fixed = search_space(["x=interval(0, 1)", "+tune=pid", "x=choice(0.5, 0.7)", "k=interval(1, 2)", "k=3"])
+    assert list(dims) == ["x"] and dims["x"].kind == "categorical"  # a later override of a key replaces it
+    assert fixed == ["+tune=pid", "k=3"]
+    with pytest.raises(ValueError, match="grid sampler needs choice"):
+        x.grid()
+
+
+def test_directions_and_returned_values_are_checked():
+    assert directions("minimize") == ["minimize"] and directions(["minimize", "maximize"]) == ["minimize", "maximize"]
+    with pytest.raises(ValueError, match=r"hydra.sweeper.direction='min': each direction must be one of"):
+        directions("min")
+    assert objective_values(1, 1) == [1.0] and objective_values((1, 2.5), 2) == [1.0, 2.5]
+    with pytest.raises(ValueError, match="returned 1 values for 2 objectives"):
+        objective_values([1.0], 2)
+
+
+def _toy(tmp_path: Path, *overrides: str) -> subprocess.CompletedProcess:
+    (tmp_path / "app.py").write_text(textwrap.dedent(APP))
+    (tmp_path / "config.yaml").write_text(textwrap.dedent(CONFIG))
+    return subprocess.run([sys.executable, "app.py", "-m", *overrides], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=300)
+
+
+def _load(tmp_path: Path):
+    return optuna.load_study(study_name="toy", storage=f"sqlite:///{tmp_path / 'study.db'}")
+
+
+def test_a_study_in_sqlite_and_the_same_command_resuming_it(tmp_path):
+    proc = _toy(tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    trials = _load(tmp_path).trials
+    assert [t.state.name for t in trials] == ["COMPLETE"] * 6
+    for t in trials:
+        assert -1.0 <= t.params["x"] <= 1.0 and t.params["y"] in (1, 2, 3) and t.params["c"] in ("a", "b")
+        assert t.value == pytest.approx((t.params["x"] - 0.3) ** 2 + t.params["y"], rel=1e-12)
+    # each trial is one Hydra job numbered as its trial, launched with the sampled values
+    job = yaml.safe_load((tmp_path / "sweep" / "5" / ".hydra" / "overrides.yaml").read_text())
+    assert job == [f"{k}={v}" for k, v in trials[5].params.items()]
+    best = yaml.safe_load((tmp_path / "sweep" / "optimization_results.yaml").read_text())
+    assert best["best_value"] == pytest.approx(min(t.value for t in trials), rel=1e-12)
+    # the same command again: the stored study continues
+    again = _toy(tmp_path, "hydra.sweeper.n_trials=3")
+    assert again.returncode == 0, again.stderr[-3000:]
+    resumed = _load(tmp_path).trials
+    assert [t.number for t in resumed] == list(range(9)) and [t.params for t in resumed[:6]] == \
+        [t.params for t in trials]
+
+
+@pytest.mark.slow
+def test_command_line_sweeps_extend_the_space_and_several_objectives_give_a_front(tmp_path):
+    proc = _toy(tmp_path, "x=tag(log, interval(0.01, 10))", "two=true", "hydra.sweeper.direction=[minimize,minimize]",
+                "hydra/sweeper/sampler=nsgaii", "hydra.sweeper.sampler.population_size=4", "hydra.sweeper.n_trials=8")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    study = _load(tmp_path)
+    assert len(study.directions) == 2 and len(study.trials) == 8
+    assert type(study.trials[0].distributions["x"]).__name__ == "FloatDistribution"
+    assert study.trials[0].distributions["x"].log and all(0.01 <= t.params["x"] <= 10 for t in study.trials)
+    front = yaml.safe_load((tmp_path / "sweep" / "optimization_results.yaml").read_text())["solutions"]
+    values = [tuple(s["values"]) for s in front]
+    assert values and all(not any(b[0] <= a[0] and b[1] <= a[1] and b != a for b in values) for a in values)
+
+
+@pytest.mark.slow
+def test_the_grid_sampler_and_failed_trials(tmp_path):
+    grid = _toy(tmp_path, "hydra/sweeper/sampler=grid", "x=choice(0.0, 0.5)", "hydra.sweeper.n_trials=50")
+    assert grid.returncode == 0, grid.stderr[-3000:]
+    points = {(t.params["x"], t.params["y"], t.params["c"]) for t in _load(tmp_path).trials}
+    assert len(_load(tmp_path).trials) == 12 and len(points) == 12  # 2 x 3 x 2, each once
+    # a trial whose job raises is FAIL; within max_failure_rate the sweep goes on, beyond it stops with the error
+    failing = tmp_path / "failing"
+    failing.mkdir()
+    ok = _toy(failing, "c=choice(a, boom)", "hydra.sweeper.max_failure_rate=1.0", "hydra.sweeper.n_trials=6")
+    assert ok.returncode == 0, ok.stderr[-3000:]
+    states = {t.params["c"]: set() for t in _load(failing).trials}
+    for t in _load(failing).trials:
+        states[t.params["c"]].add(t.state.name)
+    assert states.get("boom", {"FAIL"}) == {"FAIL"} and states.get("a", {"COMPLETE"}) == {"COMPLETE"}
+    stop = _toy(failing, "c=boom", "hydra.sweeper.n_trials=2")
+    assert stop.returncode != 0 and "boom trial" in stop.stderr
