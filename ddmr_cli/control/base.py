@@ -58,6 +58,8 @@ SURFACE, ESTIMATE, SIGNAL = "surface", "estimate", "signal"
 KINDS = (SURFACE, ESTIMATE, SIGNAL)
 #: the field of the state record that holds the diagnostic channels (added by the engine)
 DIAGNOSTICS_FIELD = "diagnostics"
+#: the series prefix of an ESTIMATE channel (``d_hat_<name lower-case>_right``/``_left``)
+ESTIMATE_PREFIX = "d_hat_"
 
 
 class Diagnostic(NamedTuple):
@@ -83,7 +85,7 @@ def series_name(channel: Diagnostic) -> str:
     if channel.kind == SURFACE:
         return "s"
     if channel.kind == ESTIMATE:
-        return f"d_hat_{channel.name.lower()}"
+        return f"{ESTIMATE_PREFIX}{channel.name.lower()}"
     return channel.name.lower()
 
 
@@ -149,5 +151,5 @@ class WheelController:
         return np.zeros(n_runs, dtype=np.dtype(self.state_fields() + [(DIAGNOSTICS_FIELD, "f8", (rows, 2))]))
 
 
-__all__ = ["DIAGNOSTICS_FIELD", "Diagnostic", "ESTIMATE", "KINDS", "SIGNAL", "STABILITY_LIMIT", "SURFACE", "StepRate",
+__all__ = ["DIAGNOSTICS_FIELD", "Diagnostic", "ESTIMATE", "ESTIMATE_PREFIX", "KINDS", "SIGNAL", "STABILITY_LIMIT", "SURFACE", "StepRate",
            "WheelController", "series_name"]

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Iterator
 import numpy as np
 
 from ddmr_cli.compiled import law
+from ddmr_cli.control.base import ESTIMATE_PREFIX
 
 if TYPE_CHECKING:  # pandas is imported only when a table is asked for
     import pandas as pd
@@ -29,6 +30,22 @@ def series_channels(channels) -> tuple[str, ...]:
 
     extra = [f"{series_name(c)}_{wheel}" for c in channels if c.kind != SURFACE for wheel in ("right", "left")]
     return SERIES_CHANNELS + tuple(extra)
+
+
+def estimate_names(series: dict) -> list[str]:
+    """The estimators whose estimate of d a run's series carry (``d_hat_<name>_right``), in the controller's row
+    order, upper-case (``NDO``, ``NN``, ``ESO``)."""
+    return [k[len(ESTIMATE_PREFIX):-len("_right")].upper() for k in series
+            if k.startswith(ESTIMATE_PREFIX) and k.endswith("_right")]
+
+
+def d_hat(series: dict, wheel: str = "right") -> np.ndarray:
+    """The controller's whole estimate of d on one wheel: the sum of its estimate channels
+    (``d_hat_<name>_<wheel>``, in row order), zero without one."""
+    out = np.zeros(len(series["t"])) if "t" in series else 0.0
+    for name in estimate_names(series):
+        out = out + series[f"{ESTIMATE_PREFIX}{name.lower()}_{wheel}"]
+    return out
 
 
 @law

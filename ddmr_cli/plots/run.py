@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ddmr_cli.plots.common import REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of, save, thin
-from ddmr_cli.report import signals as S  # FIXME layering: plots is below report
+from ddmr_cli.engine.results import d_hat, estimate_names
 
 
 def _plot(ax, x, y, **kw):
@@ -59,9 +59,9 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
         ax.set_ylabel(unit)
         ax.legend(loc="best")
     _plot(axes[2], t, series["d_true_right"], label="d true (R)", **{**REFERENCE_STYLE, "lw": 0.6})
-    estimators = S.estimate_names(series)
+    estimators = estimate_names(series)
     if estimators:
-        _plot(axes[2], t, S.d_hat(series, "right"), color=color, lw=0.7, label=f"d_hat {' + '.join(estimators)} (R)")
+        _plot(axes[2], t, d_hat(series, "right"), color=color, lw=0.7, label=f"d_hat {' + '.join(estimators)} (R)")
     axes[2].set_ylabel("d [rad/s^2]")
     axes[2].legend(loc="best")
     axes[0].set_title(f"Control signal, sliding variable, disturbance: {title}")

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ddmr_cli.engine.results import d_hat, estimate_names  # noqa: F401  (the report reads a run's estimates)
+
 #: The high-pass cutoff of the hf_fraction metric when neither the job's config nor the engine says otherwise.
 DEFAULT_HF_CUTOFF = 10.0
 
@@ -49,23 +51,6 @@ def nominal_input_inverse(robot_cfg: dict | None):
         return None
 
 
-ESTIMATE_PREFIX = "d_hat_"
-
-
-def estimate_names(series: dict) -> list[str]:
-    """The estimators whose estimate of d a run's series carry (``d_hat_<name>_right``), in the controller's row
-    order, upper-case (``NDO``, ``NN``, ``ESO``)."""
-    return [k[len(ESTIMATE_PREFIX):-len("_right")].upper() for k in series
-            if k.startswith(ESTIMATE_PREFIX) and k.endswith("_right")]
-
-
-def d_hat(series: dict, wheel: str = "right") -> np.ndarray:
-    """The controller's whole estimate of d on one wheel: the sum of its estimate channels
-    (``d_hat_<name>_<wheel>``, in row order), zero without one."""
-    out = np.zeros(len(series["t"])) if "t" in series else 0.0
-    for name in estimate_names(series):
-        out = out + series[f"{ESTIMATE_PREFIX}{name.lower()}_{wheel}"]
-    return out
 
 
 def _channel(series: dict, name: str) -> np.ndarray:
