@@ -14,8 +14,9 @@ paper's loop, number for number.
 
 Runs are independent scalar loops (no BLAS, nothing couples runs), so seed k gives bit-identical numbers alone
 or inside any batch, in any chunking and with any thread count. This module is the template of the compiled
-loop: :mod:`ddmr_cli.engine.kernels` makes one copy per controller whose only change is the import of the
-controller's laws below, and compiles it (cached on disk). Without numba the same copy runs as Python.
+loop: its controller laws come from the slot :mod:`ddmr_cli.engine.controller_slot`, and
+:mod:`ddmr_cli.engine.kernels` makes one copy per controller whose only change is those four import lines, pointed
+at the controller's module, and compiles it (cached on disk). Without numba the same copy runs as Python.
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ from __future__ import annotations
 import math
 
 from ddmr_cli.compiled import law
-from ddmr_cli.control.open_loop import command as controller_command  # controller laws
-from ddmr_cli.control.open_loop import estimates as controller_estimates  # controller laws
-from ddmr_cli.control.open_loop import start as controller_start  # controller laws
-from ddmr_cli.control.open_loop import update as controller_update  # controller laws
+from ddmr_cli.engine.controller_slot import command as controller_command  # controller laws
+from ddmr_cli.engine.controller_slot import estimates as controller_estimates  # controller laws
+from ddmr_cli.engine.controller_slot import start as controller_start  # controller laws
+from ddmr_cli.engine.controller_slot import update as controller_update  # controller laws
 from ddmr_cli.control.outer_loop import kanayama
 from ddmr_cli.engine.bands import band_row
 from ddmr_cli.engine.integrators import euler, rk4
