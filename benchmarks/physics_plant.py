@@ -4,6 +4,8 @@
                                                        # and docs/figures/physics_step_response.png
     python benchmarks/physics_plant.py speed [--runs 8] [--seconds 2] [--threads 0]
                                                        # plant steps per second over the paper terrain's zones
+    python benchmarks/physics_plant.py path [--seed 0] # one run's path over the terrain zones: the true d per zone
+                                                       # and docs/figures/physics_path.png
 
 Needs the physics extra (pip install -e ".[physics]").
 """
@@ -20,8 +22,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from physics_cases import (STEP_VOLTAGE, nominal_step_response, physics_step_response, plant_config, robot,  # noqa: E402
-                           terrain)
+from physics_cases import (STEP_VOLTAGE, load, nominal_step_response, physics_step_response,  # noqa: E402
+                           plant_config, robot, terrain)
 from ddmr_cli.plant.mujoco import MujocoPlant  # noqa: E402
 
 
@@ -80,6 +82,82 @@ def speed(runs: int, seconds: float, threads: int) -> None:
     print(f"  table4_physics (400 runs x 15 s) at this rate: {400 * 15000 / rate / 60:.1f} min")
 
 
+def path(seed: int, out: Path) -> None:
+    """One run of the paper's line (initial pose and 1 m/s reference of conf/config.yaml, conf/trajectory/line.yaml)
+    over the paper terrain, under the Kanayama outer loop (docs/model.md §3) and a proportional wheel-speed loop with
+    the nominal feed-forward (the figure shows the ground and the physics, not a controller of the paper)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ddmr_cli.compiled import plain
+    from ddmr_cli.control.outer_loop import Kanayama, kanayama
+    from ddmr_cli.model.kinematics import inverse, pose_error
+
+    rob, ter = robot(), terrain("paper")
+    plant = MujocoPlant(rob, ter, plant_config(threads=1), 0.001)
+    gains, line = Kanayama(10.0, 25.0, 10.0), load("trajectory", "line")
+    v_r, steps, kp = float(line["speed"]), 15000, 2.0  # m/s; 15 s; V s/rad
+    pose0 = np.array([[0.0, 0.05, 0.05]])
+    plant.reset(np.array([seed]), pose0, np.array([plain(inverse)(v_r, 0.0, rob.wheel_radius, rob.half_track)]))
+    x, y, d, dist = (np.zeros(steps) for _ in range(4))
+    t0 = time.perf_counter()
+    for k in range(steps):
+        s = plant.state()
+        x_r, y_r = line["x0"] + v_r * k * plant.dt, line["y0"]
+        e = plain(pose_error)(s["x"][0], s["y"][0], s["theta"][0], x_r, y_r, 0.0)
+        v_d, om_d = plain(kanayama)(gains, *e, v_r, 0.0)
+        w_d = np.array(plain(inverse)(v_d, om_d, rob.wheel_radius, rob.half_track))
+        u = np.clip(rob.damping / rob.voltage_gain * w_d + kp * (w_d - s["w"][0]), -24.0, 24.0)
+        plant.step(u[None, :], np.ones(1))
+        s = plant.state()
+        x[k], y[k], dist[k], d[k] = s["x"][0], s["y"][0], s["distance"][0], plant.true_disturbance()[0, 0]
+    wall = time.perf_counter() - t0
+    print(f"seed {seed}: 15 s in {wall:.1f} s ({steps / wall:,.0f} steps/s), diverged {bool(plant.diverged()[0])}, "
+          f"end x = {x[-1]:.3f} m, max |y - y_r| = {np.abs(y - line['y0'])[3000:].max() * 1e3:.2f} mm after 3 s")
+    starts = [z.start for z in ter.zones] + [np.inf]
+    rms = {}
+    for zone, lo, hi in zip(ter.zones, starts, starts[1:]):
+        inside = (dist >= lo + 0.5) & (dist < hi)  # half a metre past the zone's ramp and the previous zone
+        rms[zone.name] = d[inside].std()
+        print(f"  {zone.name:15s} roughness {zone.roughness:6g}: RMS of the true d about its mean "
+              f"{d[inside].std():7.2f} rad/s^2, mean {d[inside].mean():7.2f} rad/s^2 (right wheel)")
+
+    h = plant.heights(seed)
+    fx, fy = plant.field_axes()
+    band = np.abs(fy) <= 0.35
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True, height_ratios=(2.2, 1, 1.3))
+    ax = axes[0]
+    im = ax.imshow(h[band] * 1e3, origin="lower", aspect="auto", cmap="terrain",
+                   extent=(fx[0], fx[-1], fy[band][0], fy[band][-1]))
+    fig.colorbar(im, cax=ax.inset_axes([1.01, 0.0, 0.015, 1.0]), label="ground height [mm]")
+    ax.plot(x, y, color="k", lw=1.2, label="robot (axle midpoint)")
+    for i in (0, 1):  # the wheels' tracks
+        sign = -1 if i == 0 else 1
+        ax.plot(x, y + sign * rob.half_track, color="k", lw=0.5, ls=":")
+    ax.set_ylabel("y [m]")
+    fig.suptitle(f"One run (seed {seed}) on the MuJoCo plant over the paper's zones: heightfield, path, true d")
+    ax.legend(loc="upper right", fontsize=8)
+    axes[1].plot(x, (y - line["y0"]) * 1e3, color="k", lw=0.8)
+    axes[1].set_ylabel("y - y_r [mm]")
+    axes[2].plot(x, d, color="C3", lw=0.4)
+    axes[2].set_ylabel("true d, right\n[rad/s^2]")
+    axes[2].set_xlabel("x [m]")
+    for a in axes:
+        for zone, lo, hi in zip(ter.zones, starts, starts[1:]):
+            lo, hi = lo + pose0[0, 0], min(hi, fx[-1])
+            a.axvline(lo, color="0.3", lw=0.8, ls="--")
+            if a is axes[0]:
+                a.text((lo + hi) / 2, 1.02, f"{zone.name}: roughness {zone.roughness:g}, mu {zone.mu:g}\n"
+                       f"RMS of the true d {rms[zone.name]:.0f} rad/s^2", transform=a.get_xaxis_transform(),
+                       ha="center", va="bottom", fontsize=8)
+    axes[0].set_xlim(-0.5, fx[-1])
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    print(f"figure: {out}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="what", required=True)
@@ -89,9 +167,14 @@ def main(argv=None) -> int:
     p.add_argument("--runs", type=int, default=8)
     p.add_argument("--seconds", type=float, default=2.0)
     p.add_argument("--threads", type=int, default=0)
+    q = sub.add_parser("path")
+    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--out", type=Path, default=ROOT / "docs" / "figures" / "physics_path.png")
     args = parser.parse_args(argv)
     if args.what == "step":
         step(args.out)
+    elif args.what == "path":
+        path(args.seed, args.out)
     else:
         speed(args.runs, args.seconds, args.threads)
     return 0
