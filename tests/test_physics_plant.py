@@ -148,6 +148,31 @@ def test_a_robot_that_drives_off_the_field_is_flagged_diverged_and_never_raises(
     assert all(np.isfinite(v).all() for v in s.values())
 
 
+def test_a_robot_knocked_onto_its_side_is_flagged_tipped_and_never_raises():
+    """A roll rate of 80 rad/s (a kick from the side) tumbles run 0 past plant.divergence.tip_angle (it would reach
+    2.5 rad, on its back); run 1 drives on.
+    The tipped run is no longer stepped: its state stays finite where it diverged, its disturbance NaN."""
+    plant = make("flat", threads=1)
+    plant.reset(np.array([0, 1]), np.zeros((2, 3)), np.full((2, 2), 10.0))
+    plant._datas[0].qvel[3] = 80.0  # the chassis's roll rate [rad/s] (free joint: dofs 3-5 are body rates)
+    flagged_at = tipped_at = None
+    for k in range(1000):
+        plant.step(np.full((2, 2), 5.0), np.ones(2))
+        q = plant._qpos[0]
+        tilt = np.arccos(np.clip(1.0 - 2.0 * (q[4] ** 2 + q[5] ** 2), -1, 1))
+        if tipped_at is None and tilt > plant.config.divergence.tip_angle:
+            tipped_at = k
+        if flagged_at is None and plant.diverged()[0]:
+            flagged_at, tilt_at = k, tilt
+    s = plant.state()
+    print(f"run 0 kicked over: diverged after {flagged_at} steps at a tilt of {tilt_at:.3f} rad "
+          f"(tip_angle {plant.config.divergence.tip_angle} rad); run 1 at x = {s['x'][1]:.3f} m")
+    assert plant.diverged().tolist() == [True, False]
+    assert flagged_at == tipped_at and tilt_at > plant.config.divergence.tip_angle  # flagged the step it tipped
+    assert np.isnan(plant.true_disturbance()[0]).all() and np.isfinite(plant.true_disturbance()[1]).all()
+    assert all(np.isfinite(v).all() for v in s.values())
+
+
 def test_non_finite_voltages_are_a_diverged_run_not_an_exception():
     plant = make("flat", threads=1)
     plant.reset(np.array([0, 1]), np.zeros((2, 3)), np.zeros((2, 2)))
@@ -164,12 +189,18 @@ def test_non_finite_voltages_are_a_diverged_run_not_an_exception():
     ({"heightfield__x_max": 8.0}, "paper", "terrain.zones.slightly_rough.start=10.0", "zone outside the heightfield"),
     ({"timestep": 0.005}, "paper", "plant.timestep=0.005", "MuJoCo cannot hold the contacts stable"),
     ({"timestep": 0.0003}, "paper", "plant.timestep=0.0003", "whole number of steps"),
+    ({"caster__stiffness": 1e6}, "paper", "plant.timestep=0.001", "MuJoCo cannot hold the caster springs stable"),
     ({"wheel__shape": "square"}, "paper", "plant.wheel.shape='square'", "must be one of"),
     ({"wheel__colour": "red"}, "paper", "plant.wheel.colour='red'", "unknown key"),
 ])
 def test_bad_input_is_one_line_naming_the_key_and_value(overrides, terrain_name, key, rule):
+    _assert_one_line(lambda: make(terrain_name, **overrides), key, rule)
+
+
+def _assert_one_line(build, key, rule):
+    """``build()`` raises a ConfigError of one line that starts ``key`` and states ``rule``."""
     with pytest.raises(ConfigError) as info:
-        make(terrain_name, **overrides)
+        build()
     message = str(info.value)
     assert message.startswith(key) and rule in message and "\n" not in message, message
 
@@ -178,6 +209,47 @@ def test_without_mujoco_constructing_the_plant_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "mujoco", None)  # `import mujoco` now raises ImportError
     with pytest.raises(ConfigError) as info:
         make("flat")
+    assert str(info.value) == 'plant=\'mujoco\': needs MuJoCo, the optional extra: pip install -e ".[physics]"'
+
+
+def _validated(overrides=(), **plant_overrides):
+    """validate_config of the composed config with the plant node of conf/plant/mujoco.yaml (and overrides) added:
+    the CLI's validation, before a run."""
+    from hydra import compose, initialize_config_module
+    from omegaconf import OmegaConf
+
+    from ddmr_cli.config import validate_config
+
+    with initialize_config_module(config_module="ddmr_cli.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=list(overrides))
+    OmegaConf.set_struct(cfg, False)
+    cfg.plant = plant_config(**plant_overrides)
+    return validate_config(cfg)
+
+
+@pytest.mark.parametrize("overrides, plant_overrides, key, rule", [
+    ((), {"heightfield__resolution": 0.02, "heightfield__correlation_length": 0.1},
+     "plant.heightfield.resolution=0.02", "too coarse for the wheel radius"),
+    (("terrain.zones.slightly_rough.start=17.5",), {}, "terrain.zones.slightly_rough.start=17.5",
+     "zone outside the heightfield"),
+    ((), {"timestep": 0.004}, "plant.timestep=0.004", "MuJoCo cannot hold the contacts stable"),
+    ((), {"caster__stiffness": 2e6}, "plant.timestep=0.001", "MuJoCo cannot hold the caster springs stable"),
+    (("simulation.duration=17",), {}, "plant.heightfield.x_max=17.0", "the reference leaves the field"),
+    (("trajectory=circle",), {}, "plant.heightfield.x_min=-1.0", "the reference leaves the field"),
+    (("trajectory.y0=0.9",), {}, "plant.heightfield.half_width=1.0", "the reference leaves the field"),
+])
+def test_config_validation_refuses_what_the_plant_cannot_run(overrides, plant_overrides, key, rule):
+    """The checks run in the CLI's validation (ddmr_cli.config.validate.check_plant), before any run: one line."""
+    _assert_one_line(lambda: _validated(overrides, **plant_overrides), key, rule)
+
+
+def test_config_validation_passes_the_shipped_plant_and_names_the_missing_extra(monkeypatch):
+    _validated()  # conf/plant/mujoco.yaml with the default config: valid
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "mujoco" else real(name, *a))
+    with pytest.raises(ConfigError) as info:
+        _validated()
     assert str(info.value) == 'plant=\'mujoco\': needs MuJoCo, the optional extra: pip install -e ".[physics]"'
 
 

@@ -14,6 +14,7 @@ Needs the optional extra ``physics`` (``pip install -e ".[physics]"``).
 from __future__ import annotations
 
 import copy
+import importlib.util
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -25,10 +26,10 @@ from ddmr_cli.compiled import plain
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel, Robot, nominal_acceleration
 from ddmr_cli.model.terrain import Terrain
-from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_robot, elevation_range, field_layout, heightfield,
-                                         mjcf, normalised, substeps)
+from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_robot, elevation_range, field_layout,
+                                         heightfield, mjcf, normalised, substeps)
 
-__all__ = ["MujocoPlant", "import_mujoco", "EXTRA_HINT"]
+__all__ = ["MujocoPlant", "import_mujoco", "validate", "EXTRA_HINT"]
 
 #: the one line a missing extra prints
 EXTRA_HINT = 'needs MuJoCo, the optional extra: pip install -e ".[physics]"'
@@ -41,6 +42,25 @@ def import_mujoco():
     except ImportError:
         raise ConfigError("plant", "mujoco", EXTRA_HINT) from None
     return mujoco
+
+
+def validate(robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float,
+             reference_xy: np.ndarray | None = None) -> PhysicsConfig:
+    """Every check of the plant without building it (config validation, before a run): the physics extra is
+    installed, the plant config's own values (a timestep MuJoCo cannot hold stable among them), the robot fits the
+    grid (a heightfield too coarse for the wheel radius), ``dt`` a whole number of MuJoCo steps, the zones inside
+    the field, and the reference path ``(K, 2)`` [m], when given, on it. Raises :class:`ConfigError` naming the key;
+    returns the parsed config."""
+    if importlib.util.find_spec("mujoco") is None:
+        raise ConfigError("plant", "mujoco", EXTRA_HINT)
+    if not isinstance(config, PhysicsConfig):
+        config = PhysicsConfig.from_mapping(config)
+    check_robot(robot, config)
+    substeps(config, float(dt))
+    field_layout(terrain, config.heightfield)
+    if reference_xy is not None:
+        check_reference(robot, config.heightfield, np.asarray(reference_xy, dtype=float))
+    return config
 
 
 class MujocoPlant:
@@ -74,9 +94,7 @@ class MujocoPlant:
 
     def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float) -> None:
         self._mj = mj = import_mujoco()
-        if not isinstance(config, PhysicsConfig):
-            config = PhysicsConfig.from_mapping(config)
-        check_robot(robot, config)
+        config = validate(robot, terrain, config, dt)
         self.robot, self.terrain, self.config = robot, terrain, config
         self.dt = float(dt)
         self._substeps = substeps(config, self.dt)

@@ -30,7 +30,7 @@ from ddmr_cli.model.robot import GRAVITY, Robot
 from ddmr_cli.model.terrain import Terrain
 
 __all__ = ["HeightfieldConfig", "WheelConfig", "CasterConfig", "ChassisConfig", "ContactConfig", "DivergenceConfig",
-           "PhysicsConfig", "FieldLayout", "field_layout", "slope_gain", "height_sd", "zone_friction",
+           "PhysicsConfig", "FieldLayout", "field_layout", "check_robot", "check_reference", "substeps", "slope_gain", "height_sd", "zone_friction",
            "motor_gains", "heightfield", "normalised", "mjcf", "TERRAIN_STREAM", "WHEEL_SHAPES"]
 
 #: the spawn key that derives a run's heightfield from its seed (child 2 of ``SeedSequence(seed)``; child 1 is
@@ -175,6 +175,13 @@ class PhysicsConfig:
             raise ConfigError("plant.timestep", self.timestep,
                               f"MuJoCo cannot hold the contacts stable: must be <= plant.contact.timeconst / 2 = "
                               f"{self.contact.timeconst / 2:g} s")
+        # MuJoCo integrates a joint's spring explicitly: a caster (mass m_c on stiffness k, the chassis far heavier)
+        # oscillates at w = sqrt(k / m_c) and the step is stable only while w h < 2
+        spring = 2.0 * math.sqrt(self.caster.mass / self.caster.stiffness)
+        if not self.timestep < spring:
+            raise ConfigError("plant.timestep", self.timestep,
+                              f"MuJoCo cannot hold the caster springs stable: must be < 2 sqrt(plant.caster.mass / "
+                              f"plant.caster.stiffness) = {spring:.3g} s")
 
     @classmethod
     def from_mapping(cls, values: Mapping) -> "PhysicsConfig":
@@ -225,6 +232,25 @@ def check_robot(robot: Robot, config: PhysicsConfig) -> None:
     if config.chassis.width / 2 >= L - config.wheel.width / 2:
         raise ConfigError("plant.chassis.width", config.chassis.width,
                           f"the chassis must fit between the wheels: must be < {2 * L - config.wheel.width:g} m")
+
+
+def check_reference(robot: Robot, config: HeightfieldConfig, xy: np.ndarray) -> None:
+    """The reference path ``xy`` ``(K, 2)`` [m] keeps both wheels on the heightfield: ``x_min + L + R <= x <= x_max -
+    L - R`` and ``|y| <= half_width - L - R`` (a robot that follows it would otherwise drive off the ground)."""
+    reach = robot.half_track + robot.wheel_radius
+    x, y = xy[:, 0], xy[:, 1]
+    if x.min() < config.x_min + reach:
+        raise ConfigError("plant.heightfield.x_min", config.x_min,
+                          f"the reference leaves the field: it reaches x = {x.min():.3g} m, the wheels need x_min <= "
+                          f"{x.min() - reach:.3g} m")
+    if x.max() > config.x_max - reach:
+        raise ConfigError("plant.heightfield.x_max", config.x_max,
+                          f"the reference leaves the field: it reaches x = {x.max():.3g} m, the wheels need x_max >= "
+                          f"{x.max() + reach:.3g} m")
+    if np.abs(y).max() > config.half_width - reach:
+        raise ConfigError("plant.heightfield.half_width", config.half_width,
+                          f"the reference leaves the field: it reaches |y| = {np.abs(y).max():.3g} m, the wheels need "
+                          f"half_width >= {np.abs(y).max() + reach:.3g} m")
 
 
 def disc_inertia(mass: float, radius: float) -> tuple[float, float]:
