@@ -17,6 +17,7 @@ import copy
 import importlib.util
 import math
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Mapping
 
@@ -185,6 +186,7 @@ class MujocoPlant:
         self._d = np.zeros((n, 2))
         self._diverged = np.zeros(n, dtype=bool)
         self._airborne = np.zeros(n, dtype=np.int64)
+        self._seconds = {"mujoco": 0.0, "step": 0.0}
         self._check_divergence()
 
     def _ground_at(self, model, x: float, y: float) -> float:
@@ -227,6 +229,7 @@ class MujocoPlant:
         self._diverged |= ~np.isfinite(ctrl).all(axis=1)  # a non-finite voltage or damping: diverged, not stepped
         w_before = self._qvel[:, self._wheel_dof].copy()
         xy_before = self._qpos[:, 0:2].copy()
+        started = time.perf_counter()
         live = np.flatnonzero(~self._diverged)
         shares = [s for s in np.array_split(live, min(self._threads, max(len(live), 1))) if len(s)]
         if len(shares) <= 1:
@@ -235,6 +238,7 @@ class MujocoPlant:
         else:
             for f in [self._pool().submit(self._advance, s, ctrl) for s in shares]:
                 f.result()
+        stepped = time.perf_counter()
         w = self._qvel[:, self._wheel_dof]
         a_R, a_L = plain(nominal_acceleration)(self._nominal, w_before[:, 0], w_before[:, 1], u[:, 0], u[:, 1])
         d = (w - w_before) / self.dt - np.stack([a_R, a_L], axis=1)
@@ -247,6 +251,8 @@ class MujocoPlant:
         self._theta = self._theta + np.nan_to_num(step, nan=0.0)
         self._airborne = np.where((self._touch > 0).any(axis=1), 0, self._airborne + 1)
         self._check_divergence()
+        self._seconds["mujoco"] += stepped - started
+        self._seconds["step"] += time.perf_counter() - started
 
     def _pool(self) -> ThreadPoolExecutor:
         if getattr(self, "_executor", None) is None:
@@ -300,6 +306,12 @@ class MujocoPlant:
             mj.mj_energyVel(m, d)
             out[i] = d.energy
         return out
+
+    def timing(self) -> dict[str, float]:
+        """Wall seconds since :meth:`reset`: ``mujoco``, in the MuJoCo steps of the runs (the worker threads'
+        section, reading the state included), and ``step``, in the whole of :meth:`step` (the true d, the
+        divergence checks and the rest of the plant's own bookkeeping added): ``ddmr bench``'s share."""
+        return dict(self._seconds)
 
     def diverged(self) -> np.ndarray:
         """``(n,)`` bool: the run has tipped over (tilt > ``plant.divergence.tip_angle``), left the ground (neither
