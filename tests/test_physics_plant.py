@@ -275,6 +275,29 @@ def test_same_seed_same_ground_and_the_roughness_mapping():
         assert slope.std() == pytest.approx(target_slope, rel=0.35)
 
 
+def test_scenario_2s_roughness_off_phase_is_flat_ground_and_the_rest_the_same_ground():
+    """Scenario 2 turns the roughness off over [5, 10) m travelled: on the physics plant that stretch is flat ground
+    (rolling friction kept), and the rest is scenario 1's ground of the same seed. A time clock cannot place it."""
+    from ddmr_cli.config.presets import paper_scenario
+
+    one, two = make(), MujocoPlant(robot(), terrain("paper"), plant_config(), DT, paper_scenario(2))
+    h1, h2 = one.heights(4), two.heights(4)
+    x, _ = one.field_axes()
+    off, before, after = (x >= 5.1) & (x < 10.0), x < 5.0, x >= 10.1  # past the 0.1 m ramps
+    print(f"height SD on [5.1, 10) m: scenario 1 {h1[:, off].std() * 1e3:.3f} mm, scenario 2 {h2[:, off].std():.1e} m")
+    assert np.abs(h2[:, off]).max() == 0.0 and h1[:, off].std() > 5e-3
+    assert np.array_equal(h2[:, before], h1[:, before])
+    assert np.allclose(h2[:, after], h1[:, after], rtol=1e-12, atol=0.0)
+    assert np.array_equal(two.heights(4), h2)
+    _assert_one_line(lambda: make_with(paper_scenario(2, "scenario.phase_clock=time")), "scenario.phase_clock='time'",
+                     "ground is a place")
+    make_with(paper_scenario(1, "scenario.phase_clock=time"))  # roughness never off: the clock does not matter
+
+
+def make_with(scenario):
+    return MujocoPlant(robot(), terrain("paper"), plant_config(), DT, scenario)
+
+
 def _run(plant, seeds, steps=300):
     n = len(seeds)
     plant.reset(np.asarray(seeds), np.column_stack([np.full(n, 5.2), np.zeros(n), np.zeros(n)]),

@@ -285,7 +285,8 @@ def check_plant(cfg: DictConfig, sim) -> None:
     # the reference every 10 ms over the run (the field's check needs the path, not every step)
     stride = max(1, int(round(0.01 / float(sim.dt))))
     table = reference_table(sim.trajectory, sim.n_steps // stride + 1, float(sim.dt) * stride)
-    mujoco.validate(sim.robot, sim.terrain, OmegaConf.to_container(plant, resolve=True), float(sim.dt), table[:, :2])
+    mujoco.validate(sim.robot, sim.terrain, OmegaConf.to_container(plant, resolve=True), float(sim.dt), table[:, :2],
+                    sim.scenario)
 
 
 def message(exc: ConfigError, overrides: Iterable[str] = ()) -> str:

@@ -26,9 +26,10 @@ import numpy as np
 from ddmr_cli.compiled import plain
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel, Robot, nominal_acceleration
+from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.terrain import Terrain
 from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_robot, elevation_range, field_layout,
-                                         heightfield, mjcf, normalised, substeps)
+                                         heightfield, mjcf, normalised, rough_phases, substeps)
 
 __all__ = ["MujocoPlant", "import_mujoco", "validate", "EXTRA_HINT"]
 
@@ -46,12 +47,13 @@ def import_mujoco():
 
 
 def validate(robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float,
-             reference_xy: np.ndarray | None = None) -> PhysicsConfig:
+             reference_xy: np.ndarray | None = None, scenario: Scenario | None = None) -> PhysicsConfig:
     """Every check of the plant without building it (config validation, before a run): the physics extra is
     installed, the plant config's own values (a timestep MuJoCo cannot hold stable among them), the robot fits the
     grid (a heightfield too coarse for the wheel radius), ``dt`` a whole number of MuJoCo steps, the zones inside
-    the field, and the reference path ``(K, 2)`` [m], when given, on it. Raises :class:`ConfigError` naming the key;
-    returns the parsed config."""
+    the field, the reference path ``(K, 2)`` [m], when given, on it, and the scenario's roughness phases on the
+    distance clock (:func:`~ddmr_cli.plant.mujoco_model.rough_phases`). Raises :class:`ConfigError` naming the
+    key; returns the parsed config."""
     if importlib.util.find_spec("mujoco") is None:
         raise ConfigError("plant", "mujoco", EXTRA_HINT)
     if not isinstance(config, PhysicsConfig):
@@ -61,6 +63,7 @@ def validate(robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt
     field_layout(terrain, config.heightfield)
     if reference_xy is not None:
         check_reference(robot, config.heightfield, np.asarray(reference_xy, dtype=float))
+    rough_phases(scenario)
     return config
 
 
@@ -78,6 +81,9 @@ class MujocoPlant:
         The plant's own parameters (conf/plant/mujoco.yaml).
     dt : float
         The plant step [s] (``simulation.dt``): a whole multiple of ``plant.timestep``.
+    scenario : Scenario, optional
+        Its phases that turn the roughness off (scenario 2's [5, 10) m) are flat ground (the zone's rolling
+        friction kept); None: the zones' roughness everywhere.
 
     Attributes
     ----------
@@ -93,9 +99,11 @@ class MujocoPlant:
     state stays where it was when it diverged and its disturbance is NaN.
     """
 
-    def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float) -> None:
+    def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float,
+                 scenario: Scenario | None = None) -> None:
         self._mj = mj = import_mujoco()
-        config = validate(robot, terrain, config, dt)
+        config = validate(robot, terrain, config, dt, scenario=scenario)
+        self._rough = rough_phases(scenario)
         self.robot, self.terrain, self.config = robot, terrain, config
         self.dt = float(dt)
         self._substeps = substeps(config, self.dt)
@@ -123,7 +131,7 @@ class MujocoPlant:
     def heights(self, seed: int) -> np.ndarray:
         """The ground of ``seed`` [m], shape ``(nrow, ncol)``, rows along y and columns along x
         (:func:`ddmr_cli.plant.mujoco_model.heightfield`)."""
-        return heightfield(seed, self.robot, self.terrain, self.config.heightfield, self._layout)
+        return heightfield(seed, self.robot, self.terrain, self.config.heightfield, self._layout, self._rough)
 
     def field_axes(self) -> tuple[np.ndarray, np.ndarray]:
         """The heightfield's sample coordinates ``(x, y)`` [m]."""

@@ -20,18 +20,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ddmr_cli.checks import finite, integer, non_negative, one_of, positive
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import GRAVITY, Robot
+from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.terrain import Terrain
 
 __all__ = ["HeightfieldConfig", "WheelConfig", "CasterConfig", "ChassisConfig", "ContactConfig", "DivergenceConfig",
-           "PhysicsConfig", "FieldLayout", "field_layout", "check_robot", "check_reference", "substeps", "slope_gain", "height_sd", "zone_friction",
-           "motor_gains", "heightfield", "normalised", "mjcf", "TERRAIN_STREAM", "WHEEL_SHAPES"]
+           "PhysicsConfig", "FieldLayout", "field_layout", "check_robot", "check_reference", "substeps", "slope_gain",
+           "height_sd", "zone_friction", "motor_gains", "heightfield", "rough_phases", "amplitude", "normalised", "mjcf",
+           "TERRAIN_STREAM", "WHEEL_SHAPES"]
 
 #: the spawn key that derives a run's heightfield from its seed (child 2 of ``SeedSequence(seed)``; child 1 is
 #: the sensor's stream, :data:`ddmr_cli.engine.noise.SENSOR_STREAM`)
@@ -339,14 +341,15 @@ def field_layout(terrain: Terrain, config: HeightfieldConfig) -> FieldLayout:
     return FieldLayout(config.x_min, dx, ncol, config.half_width, dy, nrow, tuple(columns))
 
 
-def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout) -> np.ndarray:
+def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout,
+                rough: Sequence[tuple[float, bool]] = ()) -> np.ndarray:
     """A run's ground heights [m], shape ``(nrow, ncol)`` (rows along y, columns along x).
 
     A unit-variance Gaussian-correlated field ``n`` (white noise from the run's terrain stream,
     ``default_rng(SeedSequence(seed, spawn_key=(TERRAIN_STREAM,)))``, smoothed by a Gaussian kernel of SD ``l / 2``
-    so its correlation is ``exp(-r^2 / l^2)``, rescaled to unit sample variance) times each zone's height SD
-    (:func:`height_sd`), ramped linearly from the previous zone's over ``ramp`` metres, clipped at ``truncation``
-    SDs. Same seed, same ground.
+    so its correlation is ``exp(-r^2 / l^2)``, rescaled to unit sample variance) times the height SD of each
+    stretch of ground (:func:`amplitude`; ``rough``: the scenario's phases, :func:`rough_phases`), clipped at
+    ``truncation`` SDs. Same seed, same ground.
     """
     from scipy.ndimage import gaussian_filter
 
@@ -357,19 +360,51 @@ def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldCo
     sd = unit.std()
     unit = unit / sd if sd > 0 else unit
     np.clip(unit, -config.truncation, config.truncation, out=unit)
-    return unit * amplitude(robot, terrain, config, layout)[None, :]
+    return unit * amplitude(robot, terrain, config, layout, rough)[None, :]
 
 
-def amplitude(robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout) -> np.ndarray:
-    """The height SD at each column [m]: each zone's :func:`height_sd`, ramped from the previous zone's."""
+def rough_phases(scenario: Scenario | None) -> tuple[tuple[float, bool], ...]:
+    """The scenario's phases as ``(start [m from the origin], roughness on)`` for the ground (docs/model.md §13):
+    empty when every phase has roughness on (or no scenario). The ground is a place, so phases that turn the
+    roughness off must go by distance (``scenario.phase_clock=distance``, the default): on the paper's line the
+    distance travelled is x to a few millimetres."""
+    if scenario is None or all(p.roughness for p in scenario.phases):
+        return ()
+    if scenario.phase_clock != "distance":
+        raise ConfigError("scenario.phase_clock", scenario.phase_clock,
+                          "plant=mujoco's ground is a place, not a clock: phases that turn the roughness off must go "
+                          "by distance (scenario.phase_clock=distance)")
+    return tuple((float(p.start), bool(p.roughness)) for p in scenario.phases)
+
+
+def amplitude(robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout,
+              rough: Sequence[tuple[float, bool]] = ()) -> np.ndarray:
+    """The height SD at each column [m]: the ground in stretches that start at every zone start and every phase
+    start of ``rough`` (:func:`rough_phases`), each of its zone's :func:`height_sd` (0 where the phase has the
+    roughness off), ramped linearly from the previous stretch's over ``ramp`` metres; a stretch starting past the
+    field's end is not on it."""
     sd = height_sd(robot, terrain, config)
+    zone_starts = [z.start for z in terrain.zones]
+    starts = sorted(set(zone_starts) | {start for start, _ in rough})
+
+    def stretch_sd(start: float) -> float:
+        zone = sd[max(i for i, z in enumerate(zone_starts) if z <= start)]
+        on = [flag for s0, flag in rough if s0 <= start]
+        return zone if not on or on[-1] else 0.0
+
     x = layout.x
-    out = np.full(layout.ncol, sd[0])
-    for i in range(1, len(sd)):
-        x0 = layout.x_min + layout.dx * layout.columns[i]
+    previous = stretch_sd(starts[0])
+    out = np.full(layout.ncol, previous)
+    for start in starts[1:]:
+        column = int(round((config.origin + start - layout.x_min) / layout.dx))
+        if column >= layout.ncol - 1:
+            break
+        current = stretch_sd(start)
+        x0 = layout.x_min + layout.dx * column
         frac = np.ones_like(x) if config.ramp == 0 else np.clip((x - x0) / config.ramp, 0.0, 1.0)
         inside = x >= x0 - 1e-12
-        out[inside] = sd[i - 1] + (sd[i] - sd[i - 1]) * frac[inside]
+        out[inside] = previous + (current - previous) * frac[inside]
+        previous = current
     return out
 
 
