@@ -237,6 +237,7 @@ def _validated(overrides=(), **plant_overrides):
     (("simulation.duration=17",), {}, "plant.heightfield.x_max=17.0", "the reference leaves the field"),
     (("trajectory=circle",), {}, "plant.heightfield.x_min=-1.0", "the reference leaves the field"),
     (("trajectory.y0=0.9",), {}, "plant.heightfield.half_width=1.0", "the reference leaves the field"),
+    (("scenario=paper_2", "scenario.phase_clock=time"), {}, "scenario.phase_clock='time'", "ground is a place"),
 ])
 def test_config_validation_refuses_what_the_plant_cannot_run(overrides, plant_overrides, key, rule):
     """The checks run in the CLI's validation (ddmr_cli.config.validate.check_plant), before any run: one line."""
