@@ -58,28 +58,13 @@ def step(out: Path) -> None:
 
 
 def speed(runs: int, seconds: float, threads: int) -> None:
-    plant = MujocoPlant(robot(), terrain("paper"), plant_config(threads=threads), 0.001)
-    t0 = time.perf_counter()
-    # start each run in another zone, so the batch steps over flat, very rough and slightly rough ground
-    x0 = np.array([1.0, 6.0, 11.0])[np.arange(runs) % 3]
-    plant.reset(np.arange(runs), np.column_stack([x0, np.zeros(runs), np.zeros(runs)]), np.full((runs, 2), 33.3))
-    reset = time.perf_counter() - t0
-    rob = plant.robot
-    w_d = np.full((runs, 2), 1.0 / rob.wheel_radius)
-    steps = int(round(seconds / plant.dt))
-    in_step = 0.0
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        u = np.clip(rob.damping / rob.voltage_gain * w_d + 2.0 * (w_d - plant.state()["w"]), -24, 24)
-        t1 = time.perf_counter()
-        plant.step(u, np.ones(runs))
-        in_step += time.perf_counter() - t1
-    total = time.perf_counter() - t0
-    rate = runs * steps / total
-    print(f"{runs} runs x {steps} steps (dt 1 ms), {plant._threads} thread(s): reset {reset:.2f} s, "
-          f"{rate:,.0f} run-steps/s ({in_step / total:.0%} of the time in plant.step), "
-          f"diverged {int(plant.diverged().sum())}")
-    print(f"  table4_physics (400 runs x 15 s) at this rate: {400 * 15000 / rate / 60:.1f} min")
+    from ddmr_cli.bench.physics import plant_throughput
+
+    r = plant_throughput(runs, seconds, threads)
+    print(f"{r.runs} runs x {r.steps} steps (dt 1 ms), {r.threads} thread(s): reset {r.reset:.2f} s, "
+          f"{r.rate:,.0f} run-steps/s ({r.mujoco / r.wall:.0%} of the time in the MuJoCo steps, "
+          f"{r.plant / r.wall:.0%} in the rest of plant.step), diverged {r.diverged}")
+    print(f"  table4_physics (400 runs x 15 s) at this rate: {400 * 15000 / r.rate / 60:.1f} min")
 
 
 def path(seed: int, out: Path) -> None:

@@ -320,3 +320,13 @@ def test_runs_are_bit_identical_whatever_the_thread_count_on_very_rough_ground()
     for threads in (2, 3):
         assert np.array_equal(_run(make(threads=threads), seeds), one, equal_nan=True), threads
     assert np.isfinite(one).all() and np.abs(one[..., 6:]).max() > 10.0  # none diverged; the rough zone disturbs
+
+
+def test_ddmr_bench_times_the_plant_and_splits_the_wall_time():
+    """ddmr bench's section 6 (ddmr_cli/bench/physics.py): steps per second and the share in MuJoCo."""
+    from ddmr_cli.bench.physics import plant_throughput
+
+    r = plant_throughput(3, 0.05, threads=1)
+    print(f"{r.rate:,.0f} steps/s, MuJoCo {r.mujoco / r.wall:.0%}, plant {r.plant / r.wall:.0%}")
+    assert (r.runs, r.steps, r.threads, r.diverged) == (3, 50, 1, 0)
+    assert r.rate > 0 and 0 < r.mujoco and 0 <= r.plant and r.mujoco + r.plant <= r.wall

@@ -315,6 +315,11 @@ class MujocoPlant:
             out[i] = d.energy
         return out
 
+    @property
+    def threads(self) -> int:
+        """The worker threads stepping the runs (``plant.threads``, 0 resolved to this process's cores)."""
+        return self._threads
+
     def timing(self) -> dict[str, float]:
         """Wall seconds since :meth:`reset`: ``mujoco``, in the MuJoCo steps of the runs (the worker threads'
         section, reading the state included), and ``step``, in the whole of :meth:`step` (the true d, the
