@@ -138,12 +138,13 @@ class MujocoPlant:
         return self._layout.x, self._layout.y
 
     def _model_for(self, seed: int):
+        """The model with the ground of ``seed``, and that ground's heights as MuJoCo holds them [m]."""
         model = copy.deepcopy(self._model)
         data = normalised(self.heights(seed), self._span).astype(np.float32)
         for i, (adr, ncol) in enumerate(self._hfields):
             c0 = self._layout.columns[i]
             model.hfield_data[adr:adr + data.shape[0] * ncol] = data[:, c0:c0 + ncol].ravel()
-        return model
+        return model, (data.astype(float) - 0.5) * self._span
 
     def reset(self, seeds: np.ndarray, pose0: np.ndarray, w0: np.ndarray) -> None:
         """Start a batch: each run's ground from its seed, the robot settled onto it at ``pose0`` and rolling
@@ -163,12 +164,13 @@ class MujocoPlant:
         pose0 = np.broadcast_to(np.asarray(pose0, dtype=float), (n, 3))
         w0 = np.broadcast_to(np.asarray(w0, dtype=float), (n, 2))
         self._n = n
-        self._models = [self._model_for(int(s)) for s in seeds]
+        self._models, grounds = map(list, zip(*[self._model_for(int(s)) for s in seeds]))
         self._datas = [mj.MjData(m) for m in self._models]
         R, L = self.robot.wheel_radius, self.robot.half_track
-        for m, d, (x, y, th), (wr, wl) in zip(self._models, self._datas, pose0, w0):
+        for m, d, ground, (x, y, th), (wr, wl) in zip(self._models, self._datas, grounds, pose0, w0):
             d.ctrl[:] = (0.0, 0.0, 1.0, 1.0)
-            d.qpos[0:3] = (x, y, R + self._ground_at(m, x, y) + 1e-3)
+            # dropped from 1 mm above the highest ground under its footprint: no wheel or caster starts inside it
+            d.qpos[0:3] = (x, y, R + self._highest(ground, x, y) + 1e-3)
             d.qpos[3:7] = (math.cos(th / 2), 0.0, 0.0, math.sin(th / 2))
             mj.mj_forward(m, d)
             held = np.r_[0, 1, 5, self._wheel_dof]  # x, y, yaw rate, wheels held still: z, roll, pitch settle
@@ -197,14 +199,16 @@ class MujocoPlant:
         self._seconds = {"mujoco": 0.0, "step": 0.0}
         self._check_divergence()
 
-    def _ground_at(self, model, x: float, y: float) -> float:
-        """The ground height [m] at the grid sample nearest ``(x, y)`` of ``model``'s heightfields."""
-        lay = self._layout
-        col = int(np.clip(round((x - lay.x_min) / lay.dx), 0, lay.ncol - 1))
-        row = int(np.clip(round((y + lay.half_width) / lay.dy), 0, lay.nrow - 1))
-        zone = min(int(np.searchsorted(lay.columns, col, side="right")) - 1, len(self._hfields) - 1)
-        adr, ncol = self._hfields[zone]
-        return (float(model.hfield_data[adr + row * ncol + col - lay.columns[zone]]) - 0.5) * self._span
+    def _highest(self, ground: np.ndarray, x: float, y: float) -> float:
+        """The highest ground [m] of ``ground`` (rows along y, columns along x) within the robot's reach of
+        ``(x, y)``: a square of half side the farthest of a wheel's rim (``L + R``), a caster's and the chassis's
+        corner from the axle midpoint, whatever the heading."""
+        lay, cfg = self._layout, self.config
+        reach = max(self.robot.half_track + self.robot.wheel_radius, cfg.caster.offset + cfg.caster.radius,
+                    math.hypot(cfg.chassis.length / 2, cfg.chassis.width / 2))
+        c0, c1 = (int(np.clip(round((v - lay.x_min) / lay.dx), 0, lay.ncol - 1)) for v in (x - reach, x + reach))
+        r0, r1 = (int(np.clip(round((v + lay.half_width) / lay.dy), 0, lay.nrow - 1)) for v in (y - reach, y + reach))
+        return float(ground[r0:r1 + 1, c0:c1 + 1].max())
 
     # -- a step --------------------------------------------------------------------------------------------
 
