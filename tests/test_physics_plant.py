@@ -175,7 +175,7 @@ def test_a_robot_knocked_onto_its_side_is_flagged_tipped_and_never_raises():
 
 def test_a_start_on_very_rough_ground_settles_upright_whatever_the_seed():
     """At reset the robot drops from above the highest ground under its footprint: none starts with a wheel inside a
-    crest (seed 37 at x = 6 m did, when it was placed by the ground under the axle midpoint: flung, tipped at step 0)."""
+    crest (seed 37 at x = 6 m did when placed by the ground under the axle midpoint: flung, tipped at step 0)."""
     plant = make(threads=1)
     seeds = np.arange(30, 50)
     plant.reset(seeds, np.column_stack([np.full(20, 6.0), np.zeros(20), np.zeros(20)]), np.full((20, 2), 33.3))

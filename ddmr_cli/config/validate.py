@@ -327,4 +327,5 @@ def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.
 
 
 __all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions",
-           "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "DerivedError", "KEEP_FORMS"]
+           "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "DerivedError",
+           "KEEP_FORMS"]

@@ -32,8 +32,8 @@ from ddmr_cli.model.terrain import Terrain
 
 __all__ = ["HeightfieldConfig", "WheelConfig", "CasterConfig", "ChassisConfig", "ContactConfig", "DivergenceConfig",
            "PhysicsConfig", "FieldLayout", "field_layout", "check_robot", "check_reference", "substeps", "slope_gain",
-           "height_sd", "zone_friction", "motor_gains", "heightfield", "rough_phases", "amplitude", "normalised", "mjcf",
-           "TERRAIN_STREAM", "WHEEL_SHAPES"]
+           "height_sd", "zone_friction", "motor_gains", "heightfield", "rough_phases", "amplitude", "normalised",
+           "mjcf", "TERRAIN_STREAM", "WHEEL_SHAPES"]
 
 #: the spawn key that derives a run's heightfield from its seed (child 2 of ``SeedSequence(seed)``; child 1 is
 #: the sensor's stream, :data:`ddmr_cli.engine.noise.SENSOR_STREAM`)
