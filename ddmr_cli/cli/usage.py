@@ -23,10 +23,22 @@ def fail(message: str) -> int:
     return EXIT_USAGE
 
 
+def _did_you_mean(cause, key: str) -> str:
+    """`` (did you mean run.n_runs?)`` for an unknown key of a schema node, from the node's fields; else ''."""
+    import dataclasses
+    import difflib
+
+    node_type, part = getattr(cause, "object_type", None), getattr(cause, "key", None)
+    if not (isinstance(part, str) and isinstance(node_type, type) and dataclasses.is_dataclass(node_type)):
+        return ""
+    close = difflib.get_close_matches(part, [f.name for f in dataclasses.fields(node_type)], n=1)
+    return f" (did you mean {key.rpartition('.')[0] + '.' if '.' in key else ''}{close[0]}?)" if close else ""
+
+
 def composition_error(exc: BaseException, overrides: list[str]) -> str:
     """One line for a composition error: the key, the value and what is wrong."""
     from hydra.errors import MissingConfigException, OverrideParseException
-    from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException
 
     from ddmr_cli.config import group_options
 
@@ -49,8 +61,8 @@ def composition_error(exc: BaseException, overrides: list[str]) -> str:
         value = next((ov.partition("=")[2] for ov in reversed(overrides) if ov.lstrip("+~").partition("=")[0] == key),
                      None)
         msg = str(getattr(cause, "msg", cause)).splitlines()[0]
-        if isinstance(cause, ConfigKeyError) and "not in" in msg:
-            return f"{key}={value}: unknown key ({msg})"
+        if isinstance(cause, (ConfigKeyError, ConfigAttributeError)) and "not in" in msg:
+            return f"{key}={value}: unknown key{_did_you_mean(cause, key)} ({msg})"
         return f"{key}={value}: {msg}" if value is not None else f"{key}: {msg}"
     if isinstance(exc, MissingConfigException):
         return str(exc).splitlines()[0]

@@ -16,6 +16,20 @@ from ddmr_cli.config.validate import kept_seeds, validate_config
 
 CONFIG_MODULE = "ddmr_cli.conf"
 MODEL_DOC = "docs/model.md"
+#: where the installed package carries docs/model.md (pyproject.toml ships it as package data)
+MODEL_DOC_PACKAGE = "ddmr_cli.docs"
+
+
+def model_section_title(number: int) -> str | None:
+    """The title of ``## <number>.`` in the shipped docs/model.md (None when the section or the file is missing)."""
+    from importlib import resources
+
+    try:
+        text = resources.files(MODEL_DOC_PACKAGE).joinpath("model.md").read_text(encoding="utf-8")
+    except (ModuleNotFoundError, FileNotFoundError, OSError):
+        return None
+    prefix = f"## {number}. "
+    return next((line[len(prefix):].strip() for line in text.splitlines() if line.startswith(prefix)), None)
 
 
 def _register_resolvers() -> None:
@@ -184,7 +198,10 @@ class KeyDoc:
     @property
     def reference(self) -> str:
         """``docs/model.md §N`` (and the paper's place), or a dash for run settings outside the model."""
-        parts = [f"{MODEL_DOC} §{self.model}"] if self.model else []
+        parts = []
+        if self.model:
+            title = model_section_title(self.model)
+            parts.append(f"{MODEL_DOC} §{self.model}" + (f" ({title})" if title else ""))
         if self.paper:
             parts.append(f"paper {self.paper}")
         return "; ".join(parts) or "-"

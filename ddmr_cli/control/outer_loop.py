@@ -19,11 +19,11 @@ class Kanayama(NamedTuple):
     Parameters
     ----------
     k_x : float
-        Longitudinal gain [1/s] (default 10).
+        Longitudinal gain [1/s] (``outer_loop.k_x``).
     k_y : float
-        Lateral gain [1/m^2] (default 25).
+        Lateral gain [1/m^2] (``outer_loop.k_y``).
     k_theta : float
-        Heading gain [1/m] (default 10, critically damped: ``2 sqrt(k_y)``).
+        Heading gain [1/m] (``outer_loop.k_theta``; the defaults are critically damped, ``2 sqrt(k_y)``).
     """
 
     k_x: float
