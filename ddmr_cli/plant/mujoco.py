@@ -1,4 +1,4 @@
-"""The rigid-body plant: the paper's robot as a MuJoCo model on a heightfield (issue 30; docs/model.md, "Physics
+"""The rigid-body plant: the paper's robot as a MuJoCo model on a heightfield (issue 30; docs/model.md §13, "Physics
 plant (MuJoCo)").
 
 :class:`MujocoPlant` is an external plant the engine steps from Python: a batch of ``n`` runs, each its own MuJoCo
@@ -299,9 +299,9 @@ class MujocoPlant:
                 "distance": self._distance.copy(), "w": self._qvel[:, self._wheel_dof].copy()}
 
     def true_disturbance(self) -> np.ndarray:
-        """The lumped disturbance d of the paper's (8) over the last step [rad/s^2], ``(n, 2)``: the measured wheel
-        acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains, ``f(w_k) + g u_k``
-        (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
+        """The lumped disturbance d of the paper's (8) over the last step [rad/s^2], ``(n, 2)``, docs/model.md
+        [13g]: the measured wheel acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains,
+        ``f(w_k) + g u_k`` (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
         return self._d.copy()
 
     def energy(self) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""The MuJoCo model of the paper's robot and terrain, generated from the configs (docs/model.md, "Physics plant
-(MuJoCo)"). Plain Python and numpy: this module writes the MJCF text and the heightfield; it never imports mujoco.
+"""The MuJoCo model of the paper's robot and terrain, generated from the configs (docs/model.md §13, "Physics
+plant (MuJoCo)"). Plain Python and numpy: this module writes the MJCF text and the heightfield; it never imports mujoco.
 
 The robot: a chassis on a free joint whose origin is the axle midpoint, two hinge-driven wheels on the axle
 (right at ``y = -L``, left at ``y = +L``; positive speed drives forward) and two frictionless ball casters on the
@@ -58,7 +58,7 @@ def _section(cls, key: str, values: Any):
 
 @dataclass(frozen=True)
 class HeightfieldConfig:
-    """The heightfield's extent and the roughness-to-height mapping (docs/model.md, "Physics plant")."""
+    """The heightfield's extent and the roughness-to-height mapping (docs/model.md §13)."""
 
     resolution: float          # m
     x_min: float               # m
@@ -269,8 +269,8 @@ def chassis_yaw_inertia(robot: Robot, config: PhysicsConfig) -> float:
 
 
 def motor_gains(robot: Robot) -> tuple[float, float]:
-    """The DC-motor law ``tau = K_u u - b B w`` (docs/model.md §1 and §5) as two MuJoCo actuators per wheel: a
-    motor of gain ``K_u = k_t / R_a`` [N m/V] on the voltage ``u`` and a damper whose gain is affine in the wheel
+    """The DC-motor law ``tau = K_u u - b B w`` (docs/model.md [13a], [1b]; b of [5d]) as two MuJoCo actuators
+    per wheel: a motor of gain ``K_u = k_t / R_a`` [N m/V] on the voltage ``u`` and a damper whose gain is affine in the wheel
     speed, ``-B w`` [N m s/rad] with ``B = b_v + k_t k_e / R_a``, on the control ``b`` (scenario 2's damping
     scale, 1 when none), which multiplies the whole of B as in :func:`ddmr_cli.model.robot.disturbance`. Returns
     ``(K_u, -B)``."""
@@ -280,20 +280,21 @@ def motor_gains(robot: Robot) -> tuple[float, float]:
 def slope_gain(robot: Robot) -> float:
     """The wheel acceleration one unit of ground slope under one wheel gives [rad/s^2]: that wheel carries
     ``N = m g / 2`` and feels the torque ``N R s``, and ``d = -J^-1 tau``, so the wheel's own d has RMS
-    ``N R s |(J^-1_p, J^-1_q)|`` when the two wheels meet independent slopes (docs/model.md, "Physics plant")."""
+    ``N R s |(J^-1_p, J^-1_q)|`` when the two wheels meet independent slopes (docs/model.md [13b])."""
     jinv = robot.inverse_inertia
     return robot.mass * GRAVITY / 2 * robot.wheel_radius * math.hypot(jinv.p, jinv.q)
 
 
 def height_sd(robot: Robot, terrain: Terrain, config: HeightfieldConfig) -> np.ndarray:
-    """Each zone's height SD [m]: the slope SD ``roughness / slope_gain`` times ``l / sqrt(2)`` (the slope SD of a
-    Gaussian-correlated surface of correlation length ``l`` is ``sqrt(2) sigma_h / l``)."""
+    """Each zone's height SD [m], docs/model.md [13c]-[13d]: the slope SD ``roughness / slope_gain`` times
+    ``l / sqrt(2)`` (the slope SD of a Gaussian-correlated surface of correlation length ``l`` is
+    ``sqrt(2) sigma_h / l``)."""
     return terrain.roughness / slope_gain(robot) * config.correlation_length / math.sqrt(2)
 
 
 def zone_friction(robot: Robot, terrain: Terrain) -> np.ndarray:
-    """Each zone's MuJoCo rolling-friction coefficient [m]: ``mu R``, so that a wheel carrying ``N = m g / 2``
-    meets at most ``mu R N = mu m g R / 2``, the wheel plant's rolling-resistance torque (docs/model.md §5)."""
+    """Each zone's MuJoCo rolling-friction coefficient [m], docs/model.md [13f]: ``mu R``, so that a wheel carrying
+    ``N = m g / 2`` meets at most ``mu R N = mu m g R / 2``, the wheel plant's rolling-resistance torque (docs/model.md §5)."""
     return terrain.mu * robot.wheel_radius
 
 
@@ -343,7 +344,7 @@ def field_layout(terrain: Terrain, config: HeightfieldConfig) -> FieldLayout:
 
 def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout,
                 rough: Sequence[tuple[float, bool]] = ()) -> np.ndarray:
-    """A run's ground heights [m], shape ``(nrow, ncol)`` (rows along y, columns along x).
+    """A run's ground heights [m], shape ``(nrow, ncol)`` (rows along y, columns along x), docs/model.md [13e].
 
     A unit-variance Gaussian-correlated field ``n`` (white noise from the run's terrain stream,
     ``default_rng(SeedSequence(seed, spawn_key=(TERRAIN_STREAM,)))``, smoothed by a Gaussian kernel of SD ``l / 2``
