@@ -6,6 +6,8 @@
                                                        # plant steps per second over the paper terrain's zones
     python benchmarks/physics_plant.py path [--seed 0] # one run's path over the terrain zones: the true d per zone
                                                        # and docs/figures/physics_path.png
+    python benchmarks/physics_plant.py batch [--runs 50] [--scenario 1] [--threads 0]
+                                                       # the same loop over many seeds: wall, divergences
 
 Needs the physics extra (pip install -e ".[physics]").
 """
@@ -67,37 +69,68 @@ def speed(runs: int, seconds: float, threads: int) -> None:
     print(f"  table4_physics (400 runs x 15 s) at this rate: {400 * 15000 / r.rate / 60:.1f} min")
 
 
-def path(seed: int, out: Path) -> None:
-    """One run of the paper's line (initial pose and 1 m/s reference of conf/config.yaml, conf/trajectory/line.yaml)
-    over the paper terrain, under the Kanayama outer loop (docs/model.md §3) and a proportional wheel-speed loop with
-    the nominal feed-forward (the figure shows the ground and the physics, not a controller of the paper)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def line_runs(plant, seeds) -> dict[str, np.ndarray]:
+    """Runs of the paper's line (initial pose and 1 m/s reference of conf/config.yaml, conf/trajectory/line.yaml),
+    15 s, under the Kanayama outer loop (docs/model.md §3) and a proportional wheel-speed loop with the nominal
+    feed-forward (not a controller of the paper: the physics, not a law, is on show). Returns ``x``, ``y``,
+    ``distance`` and the right wheel's true ``d``, each ``(steps, n)``, and the ``wall`` seconds of the loop."""
     from ddmr_cli.compiled import plain
     from ddmr_cli.control.outer_loop import Kanayama, kanayama
     from ddmr_cli.model.kinematics import inverse, pose_error
 
-    rob, ter = robot(), terrain("paper")
-    plant = MujocoPlant(rob, ter, plant_config(threads=1), 0.001)
+    rob, n = plant.robot, len(seeds)
     gains, line = Kanayama(10.0, 25.0, 10.0), load("trajectory", "line")
     v_r, steps, kp = float(line["speed"]), 15000, 2.0  # m/s; 15 s; V s/rad
-    pose0 = np.array([[0.0, 0.05, 0.05]])
-    plant.reset(np.array([seed]), pose0, np.array([plain(inverse)(v_r, 0.0, rob.wheel_radius, rob.half_track)]))
-    x, y, d, dist = (np.zeros(steps) for _ in range(4))
+    start = plain(inverse)(v_r, 0.0, rob.wheel_radius, rob.half_track)
+    plant.reset(np.asarray(seeds), np.tile([0.0, 0.05, 0.05], (n, 1)), np.tile(start, (n, 1)))
+    out = {k: np.zeros((steps, n)) for k in ("x", "y", "distance", "d")}
+    w_d = np.zeros((n, 2))
     t0 = time.perf_counter()
     for k in range(steps):
         s = plant.state()
-        x_r, y_r = line["x0"] + v_r * k * plant.dt, line["y0"]
-        e = plain(pose_error)(s["x"][0], s["y"][0], s["theta"][0], x_r, y_r, 0.0)
-        v_d, om_d = plain(kanayama)(gains, *e, v_r, 0.0)
-        w_d = np.array(plain(inverse)(v_d, om_d, rob.wheel_radius, rob.half_track))
-        u = np.clip(rob.damping / rob.voltage_gain * w_d + kp * (w_d - s["w"][0]), -24.0, 24.0)
-        plant.step(u[None, :], np.ones(1))
+        x_r = line["x0"] + v_r * k * plant.dt
+        for i in range(n):
+            e = plain(pose_error)(s["x"][i], s["y"][i], s["theta"][i], x_r, line["y0"], 0.0)
+            w_d[i] = plain(inverse)(*plain(kanayama)(gains, *e, v_r, 0.0), rob.wheel_radius, rob.half_track)
+        u = np.clip(rob.damping / rob.voltage_gain * w_d + kp * (w_d - s["w"]), -24.0, 24.0)
+        plant.step(u, np.ones(n))
         s = plant.state()
-        x[k], y[k], dist[k], d[k] = s["x"][0], s["y"][0], s["distance"][0], plant.true_disturbance()[0, 0]
-    wall = time.perf_counter() - t0
+        out["x"][k], out["y"][k], out["distance"][k] = s["x"], s["y"], s["distance"]
+        out["d"][k] = plant.true_disturbance()[:, 0]
+    out["wall"] = time.perf_counter() - t0
+    return out
+
+
+def batch(runs: int, scenario: int, threads: int) -> None:
+    """``runs`` seeds of :func:`line_runs` on the paper terrain in paper scenario ``scenario``: wall time, the
+    share in MuJoCo, divergences, the deviation (the plant's side of a table4_physics job)."""
+    from ddmr_cli.config.presets import paper_scenario
+
+    plant = MujocoPlant(robot(), terrain("paper"), plant_config(threads=threads), 0.001, paper_scenario(scenario))
+    r = line_runs(plant, np.arange(runs))
+    steps = r["x"].shape[0]
+    dev = np.abs(r["y"])  # the line is y = 0: the lateral error is the deviation's cross-track part
+    timing = plant.timing()
+    print(f"scenario {scenario}: {runs} runs x {steps} steps in {r['wall']:.1f} s ({runs * steps / r['wall']:,.0f} "
+          f"steps/s, {plant.threads} thread(s), {timing['mujoco'] / r['wall']:.0%} in MuJoCo); diverged "
+          f"{int(plant.diverged().sum())}; |y| after 3 s: mean {1e3 * np.nanmean(dev[3000:]):.2f} mm, "
+          f"max {1e3 * np.nanmax(dev[3000:]):.1f} mm")
+
+
+def path(seed: int, out: Path) -> None:
+    """One run of :func:`line_runs` over the paper terrain: the true d per zone and the figure (heightfield, path,
+    lateral error, true d)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rob, ter = robot(), terrain("paper")
+    plant = MujocoPlant(rob, ter, plant_config(threads=1), 0.001)
+    line = load("trajectory", "line")
+    pose0 = np.array([[0.0, 0.05, 0.05]])
+    r = line_runs(plant, [seed])
+    x, y, d, dist, wall = r["x"][:, 0], r["y"][:, 0], r["d"][:, 0], r["distance"][:, 0], r["wall"]
+    steps = len(x)
     print(f"seed {seed}: 15 s in {wall:.1f} s ({steps / wall:,.0f} steps/s), diverged {bool(plant.diverged()[0])}, "
           f"end x = {x[-1]:.3f} m, max |y - y_r| = {np.abs(y - line['y0'])[3000:].max() * 1e3:.2f} mm after 3 s")
     starts = [z.start for z in ter.zones] + [np.inf]
@@ -152,6 +185,10 @@ def main(argv=None) -> int:
     p.add_argument("--runs", type=int, default=8)
     p.add_argument("--seconds", type=float, default=2.0)
     p.add_argument("--threads", type=int, default=0)
+    b = sub.add_parser("batch")
+    b.add_argument("--runs", type=int, default=50)
+    b.add_argument("--scenario", type=int, default=1, choices=(1, 2))
+    b.add_argument("--threads", type=int, default=0)
     q = sub.add_parser("path")
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--out", type=Path, default=ROOT / "docs" / "figures" / "physics_path.png")
@@ -160,6 +197,8 @@ def main(argv=None) -> int:
         step(args.out)
     elif args.what == "path":
         path(args.seed, args.out)
+    elif args.what == "batch":
+        batch(args.runs, args.scenario, args.threads)
     else:
         speed(args.runs, args.seconds, args.threads)
     return 0
