@@ -12,6 +12,9 @@ Prints the machine line, then
 4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only);
 5. the cost of a control step per controller: ns of its laws alone, operation counts and a Cortex-M4F estimate
    (:mod:`ddmr_cli.bench.cost`; printed after section 1 when ``--skip-e2e``).
+6. the physics plant (``plant=mujoco``, the physics extra): plant steps per second of a batch on the paper terrain
+   and the share of the wall time in the MuJoCo steps, in the rest of the plant's step and in the loop around it
+   (:mod:`ddmr_cli.bench.physics`).
 ``--quick`` shrinks every figure (CI runs it so this script cannot rot).
 """
 
@@ -156,6 +159,7 @@ def main(argv: list[str] | None = None) -> int:
           "(every later process)")
     if args.skip_e2e:
         control_step_cost(quick)
+        physics_lines(quick)
         return 0
 
     work = Path(tempfile.mkdtemp(prefix="ddmr-bench-"))
@@ -192,7 +196,29 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         shutil.rmtree(work, ignore_errors=True)
     control_step_cost(quick)
+    physics_lines(quick)
     return 0
+
+
+def physics_lines(quick: bool) -> None:
+    """Section 6: the physics plant's speed (:mod:`ddmr_cli.bench.physics`), or why it is skipped."""
+    import importlib.util
+
+    from ddmr_cli.plant.mujoco import EXTRA_HINT
+
+    print("\n6. physics plant (plant=mujoco): plant steps per second on the paper terrain, dt 1 ms")
+    if importlib.util.find_spec("mujoco") is None:
+        print(f"   (skipped: {EXTRA_HINT})")
+        return
+    from ddmr_cli.bench.physics import plant_throughput
+
+    runs, seconds = (6, 0.2) if quick else (50, 2.0)
+    for threads in (1, 0):
+        r = plant_throughput(runs, seconds, threads)
+        print(f"   {r.runs} runs x {r.steps} steps, {r.threads} thread(s): {r.rate:,.0f} steps/s; of the wall "
+              f"{r.mujoco / r.wall:.0%} in MuJoCo, {r.plant / r.wall:.0%} in the plant's own Python, "
+              f"{1 - (r.mujoco + r.plant) / r.wall:.0%} in the wheel-speed loop; reset {r.reset:.2f} s; "
+              f"table4_physics (400 runs x 15 s) at this rate: {400 * 15000 / r.rate / 60:.1f} min")
 
 
 def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repeats: int = 3) -> None:

@@ -272,6 +272,23 @@ def check_derived(sim) -> None:
                           f"{float(sim.divergence_bound):g} m: every run would stop at once")
 
 
+def check_plant(cfg: DictConfig, sim) -> None:
+    """An external plant's own checks (``plant=mujoco``: :func:`ddmr_cli.plant.mujoco.validate`, the physics extra
+    installed, the heightfield fine enough for the wheel, the zones and the reference on the field, a timestep
+    MuJoCo holds stable); nothing for the wheel plant."""
+    plant = cfg.get("plant")
+    if plant is None or plant.get("name") != "mujoco":
+        return
+    from ddmr_cli.model.trajectory import reference_table
+    from ddmr_cli.plant import mujoco
+
+    # the reference every 10 ms over the run (the field's check needs the path, not every step)
+    stride = max(1, int(round(0.01 / float(sim.dt))))
+    table = reference_table(sim.trajectory, sim.n_steps // stride + 1, float(sim.dt) * stride)
+    mujoco.validate(sim.robot, sim.terrain, OmegaConf.to_container(plant, resolve=True), float(sim.dt), table[:, :2],
+                    sim.scenario)
+
+
 def message(exc: ConfigError, overrides: Iterable[str] = ()) -> str:
     """The one line of a ConfigError: ``key=value: rule``; when it names a whole section (a derived number,
     or a model part's check of several values), the overrides of that section stand for it."""
@@ -297,6 +314,7 @@ def validate_config(cfg: DictConfig):
     sim = build_simulation(cfg)
     sim.validate()
     check_derived(sim)
+    check_plant(cfg, sim)
     budget.check(job_estimate(cfg, sim, kept), cfg.run.get("max_memory_gb"),
                  cluster_mem_gb=(cfg.get("cluster") or {}).get("mem_gb"))
     return sim
@@ -309,4 +327,5 @@ def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.
 
 
 __all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions",
-           "check_target_classes", "check_derived", "message", "job_estimate", "DerivedError", "KEEP_FORMS"]
+           "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "DerivedError",
+           "KEEP_FORMS"]
