@@ -21,7 +21,9 @@ Optuna (the ``tune`` extra: gain tuning and the calibration search, ``hydra/swee
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Sequence
+import contextlib
+import functools
+from typing import Any, Iterable, Iterator, Sequence
 
 from ddmr_cli.errors import ConfigError, DDMRError
 
@@ -56,6 +58,37 @@ def apply_overrides(overrides: Sequence, cfg) -> None:
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
 
     ConfigLoaderImpl._apply_overrides_to_config(list(overrides), cfg)
+
+
+def check_sweep_overrides(parsed: Sequence, run_mode, from_shell: bool = True) -> None:
+    """Hydra's check that sweep overrides appear only in a multirun (and, from the shell, not as bare lists):
+    ``ConfigLoaderImpl.validate_sweep_overrides_legal``."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    ConfigLoaderImpl.validate_sweep_overrides_legal(list(parsed), run_mode=run_mode, from_shell=from_shell)
+
+
+@contextlib.contextmanager
+def compositions_once() -> Iterator[Any]:
+    """Within the context, every whole composition of this process (Hydra's compose API, Hydra's ``get_mode``,
+    run and multirun) goes through one :class:`~ddmr_cli.config.compose_once.CompositionMemo`:
+    ``ConfigLoaderImpl.load_configuration`` is wrapped, and restored on leaving. Yields the memo."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    from ddmr_cli.config.compose_once import CompositionMemo
+
+    memo = CompositionMemo()
+    original = ConfigLoaderImpl.load_configuration
+
+    def load_configuration(self, config_name, overrides, run_mode, from_shell=True, validate_sweep_overrides=True):
+        return memo.load(self, functools.partial(original, self), config_name, overrides, run_mode, from_shell,
+                         validate_sweep_overrides)
+
+    ConfigLoaderImpl.load_configuration = load_configuration
+    try:
+        yield memo
+    finally:
+        ConfigLoaderImpl.load_configuration = original
 
 
 def overrides_dirname(parsed: Sequence, exclude_keys: Iterable[str], item_sep: str, kv_sep: str) -> str:
