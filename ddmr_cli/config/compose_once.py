@@ -102,6 +102,15 @@ class SweepConfigLoader:
         self._skeletons = Skeletons()
         self._groups: dict[str, bool] = {}
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickled in a launcher's worker, before the job restores Hydra's state (``Singleton.set_state``, which
+        scans every ``hydra_plugins`` module again): the scan is made once per worker process
+        (:func:`ddmr_cli.compat.cache_plugin_scan`)."""
+        from ddmr_cli.compat import cache_plugin_scan
+
+        self.__dict__.update(state)
+        cache_plugin_scan()
+
     def __getattr__(self, name: str):  # load_configuration, get_search_path, get_sources, list_groups, ...
         if name == "inner":  # not set yet (unpickling)
             raise AttributeError(name)
