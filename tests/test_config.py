@@ -378,3 +378,21 @@ def test_one_composition_per_process_refuses_what_hydra_refuses():
         loader.load_configuration("config", overrides=[], run_mode=RunMode.RUN)
         with pytest.raises((HydraException, OmegaConfBaseException)):
             loader.load_configuration("config", overrides=["hydra.run.dri=x"], run_mode=RunMode.RUN)
+
+
+@pytest.mark.parametrize("overrides, n_jobs, work, expected", [
+    ([], 8, 6_000_000, True),                                      # table4: in this process (launcher=basic)
+    ([], 17, 1_000, False),                                        # many jobs: joblib's workers
+    ([], 8, 10 ** 9, False),                                       # much simulation: in parallel processes
+    (["launcher=local"], 8, 6_000_000, False),                     # a launcher named on the command line is kept
+    (["launcher=submitit_local"], 2, 1_000, False),
+])
+def test_small_local_sweeps_run_in_this_process(overrides, n_jobs, work, expected):
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from ddmr_cli.cli.modes import small_local_sweep
+    from ddmr_cli.config import compose_config
+
+    base = compose_config(overrides, return_hydra_config=True)
+    parsed = OverridesParser.create().parse_overrides(overrides)
+    assert small_local_sweep(base, parsed, n_jobs, work) is expected
