@@ -147,9 +147,12 @@ class Sweep(Mode):
         subdir = [o for o in overrides if o.startswith("hydra.sweep.subdir=")]
         _refuse_escapes(jobs, subdir)
         _refuse_shared_dirs(jobs, subdir)
-        work = _validate_jobs(jobs, base, True, compose)
-        # the launcher is left out of the job dirs' names and of the config hash: the same dirs, the same numbers
-        return Plan(jobs, ["launcher=basic"] if small_local_sweep(base, parsed, len(jobs), work) else [])
+        # a small sweep's jobs are validated as Hydra's sweeper will compose them (launcher=basic last), so both
+        # share one composition per set of group choices; the launcher is left out of the job dirs' names and of
+        # the config hash: the same dirs, the same numbers
+        session = ["launcher=basic"] if small_local_sweep(base, parsed, len(jobs), 0) else []
+        work = _validate_jobs(jobs, base, True, lambda job: compose([*job, *session]))
+        return Plan(jobs, session if small_local_sweep(base, parsed, len(jobs), work) else [])
 
     def preflight(self, out_dir, jobs):
         from ddmr_cli.storage import jobdir, sweep
