@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
-from typing import Any, Iterable, Iterator, Sequence
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from ddmr_cli.errors import ConfigError, DDMRError
 
@@ -69,24 +69,22 @@ def check_sweep_overrides(parsed: Sequence, run_mode, from_shell: bool = True) -
 
 
 @contextlib.contextmanager
-def compositions_once() -> Iterator[Any]:
+def loading_through(load: Callable[..., Any]) -> Iterator[None]:
     """Within the context, every whole composition of this process (Hydra's compose API, Hydra's ``get_mode``,
-    run and multirun) goes through one :class:`~ddmr_cli.config.compose_once.CompositionMemo`:
-    ``ConfigLoaderImpl.load_configuration`` is wrapped, and restored on leaving. Yields the memo."""
+    run and multirun) calls ``load(loader, compose, config_name, overrides, run_mode, from_shell,
+    validate_sweep_overrides)``, ``compose`` being the loader's own method: ``ConfigLoaderImpl.load_configuration``
+    is wrapped, and restored on leaving (:func:`ddmr_cli.config.compose_once.compositions_once`)."""
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
 
-    from ddmr_cli.config.compose_once import CompositionMemo
-
-    memo = CompositionMemo()
     original = ConfigLoaderImpl.load_configuration
 
     def load_configuration(self, config_name, overrides, run_mode, from_shell=True, validate_sweep_overrides=True):
-        return memo.load(self, functools.partial(original, self), config_name, overrides, run_mode, from_shell,
-                         validate_sweep_overrides)
+        return load(self, functools.partial(original, self), config_name, overrides, run_mode, from_shell,
+                    validate_sweep_overrides)
 
     ConfigLoaderImpl.load_configuration = load_configuration
     try:
-        yield memo
+        yield
     finally:
         ConfigLoaderImpl.load_configuration = original
 

@@ -335,7 +335,7 @@ def test_one_composition_per_process_gives_hydras_configs(calls):
     from hydra.core.global_hydra import GlobalHydra
     from hydra.types import RunMode
 
-    from ddmr_cli.compat import compositions_once
+    from ddmr_cli.config.compose_once import compositions_once
     from ddmr_cli.config import _initialized
 
     with _initialized():
@@ -366,7 +366,7 @@ def test_one_composition_per_process_refuses_what_hydra_refuses():
     from hydra.types import RunMode
     from omegaconf.errors import OmegaConfBaseException
 
-    from ddmr_cli.compat import compositions_once
+    from ddmr_cli.config.compose_once import compositions_once
     from ddmr_cli.config import _initialized
 
     with _initialized():

@@ -127,7 +127,7 @@ def cmd_run(argv: list[str]) -> int:
     if INFO_FLAGS & flags.keys():  # no job runs: Hydra prints what was asked for
         return hydra(argv, completing=bool({"-sc", "--shell-completion"} & flags.keys()))
     argv, config_dir, search_dir = config_dirs(argv)
-    from ddmr_cli.compat import compositions_once
+    from ddmr_cli.config.compose_once import compositions_once
 
     with compositions_once():  # our validation, Hydra's get_mode and its run compose the config once (issue 28)
         try:

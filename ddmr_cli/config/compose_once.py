@@ -18,14 +18,15 @@ composition, ``hydra`` node included, for every kind of override.
 :class:`CompositionMemo` is the same idea for the few whole compositions of one ``ddmr run`` process: the CLI's
 validation, Hydra's ``get_mode`` and Hydra's run (or multirun) compose the same config name and overrides, the
 last two with values of the ``hydra`` node added at the end (``hydra.run.dir=...``, ``hydra.mode=RUN``); with
-the memo (:func:`ddmr_cli.compat.compositions_once`) the first call composes and the others copy its result and
+the memo (:func:`compositions_once`) the first call composes and the others copy its result and
 apply their added values as Hydra would (issue 28: a single run composed three times).
 """
 
 from __future__ import annotations
 
+import contextlib
 import pickle
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -202,4 +203,15 @@ class CompositionMemo(OverrideParser):
         return cfg
 
 
-__all__ = ["CompositionMemo", "OverrideParser", "Skeletons", "SweepConfigLoader", "split_overrides"]
+@contextlib.contextmanager
+def compositions_once() -> Iterator[CompositionMemo]:
+    """Within the context, every whole composition of this process goes through one :class:`CompositionMemo`
+    (:func:`ddmr_cli.compat.loading_through`). Yields the memo."""
+    from ddmr_cli.compat import loading_through
+
+    memo = CompositionMemo()
+    with loading_through(memo.load):
+        yield memo
+
+
+__all__ = ["compositions_once", "CompositionMemo", "OverrideParser", "Skeletons", "SweepConfigLoader", "split_overrides"]
