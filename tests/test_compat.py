@@ -64,3 +64,27 @@ def test_config_repository_answers_group_questions():
         repo = compat.config_repository(GlobalHydra.instance().config_loader())
         assert repo.group_exists("controller") and not repo.group_exists("no_such_group")
         assert "smc" in repo.get_group_options("controller")
+
+
+def test_a_worker_scans_hydras_plugins_once():
+    """A launcher's worker restores Hydra's state for every job (Singleton.set_state), which scanned every
+    hydra_plugins module again (new plugin classes each time); once the sweep's loader is unpickled in the worker
+    (cache_plugin_scan) the scan is made once and every job gets the same classes."""
+    import pickle
+
+    from hydra.core.plugins import Plugins
+    from hydra.core.singleton import Singleton
+
+    from ddmr_cli.config.compose_once import SweepConfigLoader
+
+    scan = Plugins.__dict__["_scan_all_plugins"]
+    try:
+        pickle.loads(pickle.dumps(SweepConfigLoader(None)))  # what a worker does with each batch of jobs
+        Singleton.set_state(Singleton.get_state())
+        first = dict(Plugins.instance().class_name_to_class)
+        Singleton.set_state(Singleton.get_state())
+        again = Plugins.instance().class_name_to_class
+        assert first and all(again[name] is cls for name, cls in first.items())
+    finally:
+        Plugins._scan_all_plugins = scan
+        Singleton.set_state(Singleton.get_state())
