@@ -26,7 +26,7 @@ def fail(message: str) -> int:
 def composition_error(exc: BaseException, overrides: list[str]) -> str:
     """One line for a composition error: the key, the value and what is wrong."""
     from hydra.errors import MissingConfigException, OverrideParseException
-    from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException
 
     from ddmr_cli.config import group_options
 
@@ -49,12 +49,24 @@ def composition_error(exc: BaseException, overrides: list[str]) -> str:
         value = next((ov.partition("=")[2] for ov in reversed(overrides) if ov.lstrip("+~").partition("=")[0] == key),
                      None)
         msg = str(getattr(cause, "msg", cause)).splitlines()[0]
-        if isinstance(cause, ConfigKeyError) and "not in" in msg:
-            return f"{key}={value}: unknown key ({msg})"
+        if isinstance(cause, (ConfigKeyError, ConfigAttributeError)) and "not in" in msg:
+            return f"{key}={value}: {_unknown(cause, key)}"
         return f"{key}={value}: {msg}" if value is not None else f"{key}: {msg}"
     if isinstance(exc, MissingConfigException):
         return str(exc).splitlines()[0]
     return " ".join(str(exc).split())
+
+
+def _unknown(cause, key: str) -> str:
+    """A key a schema does not have, with the closest key when one is close (as for ``+key=value``)."""
+    import dataclasses
+
+    from ddmr_cli.config.validate import unknown_key
+
+    kind = getattr(cause, "object_type", None)
+    fields = [f.name for f in dataclasses.fields(kind)] if dataclasses.is_dataclass(kind) else []
+    *parents, name = key.split(".")
+    return unknown_key(parents, name, fields)
 
 
 #: Hydra launcher plugins that come with an extra of this package: launcher config name -> extra
