@@ -44,7 +44,8 @@ def test_every_key_of_a_composed_config_is_documented(overrides):
 def test_key_doc_follows_the_composed_schema():
     smc = compose_config(["controller=smc_ndo"])
     assert key_doc(smc, "controller.ndo.gain").unit == "1/s"
-    assert key_doc(smc, "controller.switching_gain").reference == "docs/model.md §6; paper 3.1, eq. (17), Table 3"
+    assert key_doc(smc, "controller.switching_gain").reference == ("docs/model.md §6 (Controllers and observers); paper 3.1, "
+                                                                         "eq. (17), Table 3")
     assert key_doc(compose_config(["controller=pid"]), "controller.kp").unit == "V s/rad"
     zone = key_doc(smc, "terrain.zones.very_rough.roughness")
     assert (zone.unit, zone.value, zone.model) == ("rad/s^2", 100.0, 5)

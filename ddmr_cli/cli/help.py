@@ -140,6 +140,13 @@ def cmd_explain(argv: list[str]) -> int:
         print(f"  {label} {_fmt_value(doc.value)}  ({note})")
     print(f"  range:   {doc.range or '-'}")
     print(f"  see:     {doc.reference}")
+    if doc.model:
+        from importlib.resources import as_file
+
+        from ddmr_cli.config import model_doc
+
+        with as_file(model_doc()) as path:  # a file of the installed package (a wheel install too)
+            print(f"  read:    {path}")
     if composed_from:
         print(f"  note:    not a key of the composed {key.split('.')[0]}={default_choice}; "
               f"set it with {composed_from} (e.g. ddmr run {composed_from} {key}=...)")
