@@ -168,14 +168,14 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     With ``run.progress``, a bar over the steps (``bars``: not in a sweep, whose launching process draws one bar
     over its jobs) and the line said before the step loop is compiled (:mod:`ddmr_cli.progress`)."""
     from ddmr_cli.engine.simulation import simulate
-    from ddmr_cli.progress import StepBar, compile_notice
+    from ddmr_cli.progress import StepBar
 
     label = f"{sim.controller.name}/{sim.scenario.name}"
     progress = StepBar(label, len(seeds), sim.n_steps, enabled=bool(cfg.run.progress) and bars)
     try:
         result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
                           bands=bool(cfg.run.bands),
-                          compiling=(lambda: compile_notice(sim.controller.name)) if cfg.run.progress else None)
+                          compiling=(lambda: progress.compiling(sim.controller.name)) if cfg.run.progress else None)
     finally:
         progress.close()
     io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))

@@ -41,32 +41,72 @@ def interactive(stream: TextIO | None = None) -> bool:
 
 
 class _Lines:
-    """A stream for tqdm off a terminal: each refresh becomes one whole line (no carriage returns, no blanks)."""
+    """A stream for tqdm off a terminal: each refresh becomes one whole line (no carriage returns, no blanks, no
+    line twice in a row: tqdm redraws the last state when it closes)."""
 
     def __init__(self, stream: TextIO) -> None:
         self.stream = stream
+        self.last = ""
 
     def write(self, text: str) -> None:
         line = text.replace("\r", "").strip()
-        if line:
+        if line and line != self.last:
             self.stream.write(line + "\n")
+            self.last = line
 
     def flush(self) -> None:
         self.stream.flush()
 
 
+class Silent:
+    """What :func:`bar` returns when progress is off: tqdm's interface, doing nothing. Not a disabled tqdm,
+    which still makes tqdm's multiprocessing lock, a semaphore: a sweep's worker killed on Ctrl-C would leave it
+    behind, and the resource tracker would warn of it after ``ddmr: interrupted``."""
+
+    disable, n, total = True, 0, None
+
+    def __init__(self, total=None) -> None:
+        self.total = total
+
+    def update(self, n=1) -> None:
+        pass
+
+    def refresh(self) -> None:
+        pass
+
+    def reset(self, total=None) -> None:
+        self.total = total
+
+    def set_postfix_str(self, text: str = "") -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> "Silent":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
+
+
 def bar(total: int | float | None, desc: str, unit: str = "it", enabled: bool = True,
-        stream: TextIO | None = None, **kwargs) -> tqdm:
+        stream: TextIO | None = None, **kwargs) -> "tqdm | Silent":
     """A progress bar on ``stream`` (default stderr): a tqdm bar on a terminal, a plain line every
-    :data:`LOG_EVERY` s otherwise, a silent one when not ``enabled`` (``run.progress=false``)."""
+    :data:`LOG_EVERY` s otherwise (its ``ddmr_every``: how often a :class:`Ticker` redraws it), a
+    :class:`Silent` one when not ``enabled`` (``run.progress=false``)."""
     stream = sys.stderr if stream is None else stream
     if not enabled:
-        return tqdm(total=total, disable=True)
+        return Silent(total)
     if interactive(stream):
-        return tqdm(total=total, desc=desc, unit=unit, file=stream, mininterval=TTY_EVERY, dynamic_ncols=True,
-                    **kwargs)
-    return tqdm(total=total, desc=desc, unit=unit, file=_Lines(stream), mininterval=LOG_EVERY,
-                maxinterval=LOG_EVERY, bar_format=_LINE_FORMAT, **kwargs)
+        b = tqdm(total=total, desc=desc, unit=unit, file=stream, mininterval=TTY_EVERY, dynamic_ncols=True,
+                 **kwargs)
+        b.ddmr_every = 1.0
+    else:
+        b = tqdm(total=total, desc=desc, unit=unit, file=_Lines(stream), mininterval=LOG_EVERY,
+                 maxinterval=LOG_EVERY, bar_format=_LINE_FORMAT, **kwargs)
+        b.ddmr_every = LOG_EVERY
+    return b
 
 
 def each(items: Iterable, total: int, desc: str, unit: str = "it", enabled: bool = True):
@@ -77,18 +117,13 @@ def each(items: Iterable, total: int, desc: str, unit: str = "it", enabled: bool
             b.update(1)
 
 
-def _tick_every(b: tqdm) -> float:
-    """Redraw every second on a terminal, every :data:`LOG_EVERY` s in a log."""
-    return LOG_EVERY if isinstance(getattr(b, "fp", None), _Lines) else 1.0
-
-
 class Ticker:
     """Redraws a bar every ``every`` seconds from a daemon thread, so its elapsed time and ETA move while nothing
     finishes (a compile, a long job); ``poll()``, when given, is called first and returns how far to advance;
     the bar is closed, and the thread ends, once it is full."""
 
-    def __init__(self, b: tqdm, every: float | None = None, poll: Callable[[], int] | None = None) -> None:
-        self.bar, self.every, self.poll = b, _tick_every(b) if every is None else every, poll
+    def __init__(self, b: "tqdm | Silent", every: float | None = None, poll: Callable[[], int] | None = None) -> None:
+        self.bar, self.every, self.poll = b, getattr(b, "ddmr_every", 1.0) if every is None else every, poll
         self._stop = threading.Event()
         self._thread = None
         if not b.disable:  # a silent bar (run.progress=false) needs no thread
@@ -129,6 +164,15 @@ class StepBar:
     def __call__(self, done: int, total: int) -> None:
         self._bar.update(done - self._bar.n)
 
+    def compiling(self, controller: str) -> None:
+        """Say :func:`compile_notice`'s line above the bar (the bar is cleared, the line written, the bar redrawn)."""
+        if isinstance(self._bar, tqdm):
+            self._bar.clear()
+            compile_notice(controller, self._bar.fp)
+            self._bar.refresh()
+        else:
+            compile_notice(controller)
+
     def close(self) -> None:
         self._ticker.stop()
         self._bar.close()
@@ -137,10 +181,12 @@ class StepBar:
 def compile_notice(controller: str, stream: TextIO | None = None) -> None:
     """The line said before the step loop is compiled (first use of a controller, or of a new call signature:
     another actuator delay, control rate or sensor). On a terminal it starts by clearing the line, which may hold
-    the bar of another process (a sweep's, drawn by ``ddmr run`` while its workers compile)."""
+    the bar of another process (a sweep's, drawn by ``ddmr run`` while its workers compile). Written directly,
+    not with ``tqdm.write``, which would make tqdm's lock in a sweep's worker (see :class:`Silent`)."""
     stream = sys.stderr if stream is None else stream
     clear = "\r\033[K" if interactive(stream) else ""
-    tqdm.write(f"{clear}ddmr: compiling the step loop for {controller} (first use only, about 10 s)", file=stream)
+    stream.write(f"{clear}ddmr: compiling the step loop for {controller} (first use only, about 10 s)\n")
+    stream.flush()
 
 
 def quiet_sweep_logging(hydra_cfg) -> list[str]:
@@ -183,4 +229,4 @@ class SweepWatch:
             self._bar.close()
 
 
-__all__ = ["LOG_EVERY", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging"]
+__all__ = ["LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging"]

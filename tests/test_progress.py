@@ -31,6 +31,7 @@ def test_off_a_terminal_each_refresh_is_one_whole_line():
     assert lines[0].startswith("validating: 0/4 jobs (0 %)")
     assert lines[-1].startswith("validating: 4/4 jobs (100 %)")
     assert all(line.strip() for line in lines)
+    assert len(lines) == len(set(lines))  # the last state once, though tqdm draws it again on close
 
 
 def test_on_a_terminal_the_bar_redraws_in_place():
