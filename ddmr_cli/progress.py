@@ -77,7 +77,7 @@ class Silent:
     def reset(self, total=None) -> None:
         self.total = total
 
-    def set_postfix_str(self, text: str = "") -> None:
+    def set_postfix_str(self, text: str = "", refresh: bool = True) -> None:
         pass
 
     def close(self) -> None:
@@ -135,7 +135,7 @@ class Ticker:
             advanced = self.poll() if self.poll is not None else 0
             if advanced:
                 self.bar.update(advanced)
-            else:
+            elif self.bar.format_dict["elapsed"] >= getattr(self.bar, "delay", 0):  # tqdm's delay: not drawn yet
                 self.bar.refresh()
             if self.poll is not None and self.bar.total is not None and self.bar.n >= self.bar.total:
                 self.bar.close()  # before what follows is printed (a sweep's summary)

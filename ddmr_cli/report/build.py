@@ -421,15 +421,16 @@ def build(path, out=None, margin=None, figures: bool = True, progress: bool = Tr
     from ddmr_cli.progress import Ticker, bar
 
     margin = Margin.parse(margin)
-    with bar(None, "report", "steps", progress) as b, Ticker(b):
-        b.set_postfix_str("reading the jobs")
+    # drawn after 1 s: a report refused at once (no such dir) prints its one error line only
+    with bar(None, "report", "steps", progress, delay=1.0) as b, Ticker(b):
+        b.set_postfix_str("reading the jobs", refresh=False)
         data = load(path)
         out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
 
         def write(root: Path) -> Path:
             report = Report(data, root, margin, figures, final=out_dir, step=b.update)
             b.reset(total=report.steps())
-            b.set_postfix_str(f"{len(data.jobs)} jobs")
+            b.set_postfix_str(f"{len(data.jobs)} jobs", refresh=False)
             return report.build()
 
         return staged(out_dir, write)
