@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Callable, Iterable, TextIO
 
@@ -28,6 +29,9 @@ from tqdm import tqdm
 LOG_EVERY = 10.0
 #: seconds between two redraws of a bar on a terminal (tqdm's mininterval)
 TTY_EVERY = 0.2
+#: seconds before a bar is first drawn (tqdm's delay): work done sooner, or refused at once with one error line,
+#: draws none
+DELAY = 1.0
 _LINE_FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f} %), {elapsed} elapsed, {remaining} left"
 
 
@@ -94,10 +98,12 @@ def bar(total: int | float | None, desc: str, unit: str = "it", enabled: bool = 
         stream: TextIO | None = None, **kwargs) -> "tqdm | Silent":
     """A progress bar on ``stream`` (default stderr): a tqdm bar on a terminal, a plain line every
     :data:`LOG_EVERY` s otherwise (its ``ddmr_every``: how often a :class:`Ticker` redraws it), a
-    :class:`Silent` one when not ``enabled`` (``run.progress=false``)."""
+    :class:`Silent` one when not ``enabled`` (``run.progress=false``); first drawn after :data:`DELAY` s unless
+    ``delay`` says otherwise."""
     stream = sys.stderr if stream is None else stream
     if not enabled:
         return Silent(total)
+    kwargs.setdefault("delay", DELAY)
     if interactive(stream):
         b = tqdm(total=total, desc=desc, unit=unit, file=stream, mininterval=TTY_EVERY, dynamic_ncols=True,
                  **kwargs)
@@ -109,34 +115,43 @@ def bar(total: int | float | None, desc: str, unit: str = "it", enabled: bool = 
     return b
 
 
-def each(items: Iterable, total: int, desc: str, unit: str = "it", enabled: bool = True):
-    """Iterate ``items`` with a :func:`bar` over them."""
-    with bar(total, desc, unit, enabled) as b:
+def each(items: Iterable, total: int, desc: str, unit: str = "it", enabled: bool = True, **kwargs):
+    """Iterate ``items`` with a :func:`bar` over them (``kwargs``: tqdm's)."""
+    with bar(total, desc, unit, enabled, **kwargs) as b:
         for item in items:
             yield item
             b.update(1)
 
 
 class Ticker:
-    """Redraws a bar every ``every`` seconds from a daemon thread, so its elapsed time and ETA move while nothing
-    finishes (a compile, a long job); ``poll()``, when given, is called first and returns how far to advance;
-    the bar is closed, and the thread ends, once it is full."""
+    """Redraws a bar from a daemon thread, so its elapsed time and ETA move while nothing finishes (a compile, a
+    long job): checked every second, drawn first once tqdm's ``delay`` has passed, then every ``ddmr_every``
+    seconds (1 s on a terminal, :data:`LOG_EVERY` in a log). ``poll()``, when given, is called each second and
+    returns how far to advance; the bar is closed, and the thread ends, once it is full."""
 
-    def __init__(self, b: "tqdm | Silent", every: float | None = None, poll: Callable[[], int] | None = None) -> None:
-        self.bar, self.every, self.poll = b, getattr(b, "ddmr_every", 1.0) if every is None else every, poll
+    def __init__(self, b: "tqdm | Silent", poll: Callable[[], int] | None = None) -> None:
+        self.bar, self.poll = b, poll
+        self.every = getattr(b, "ddmr_every", 1.0)
         self._stop = threading.Event()
         self._thread = None
         if not b.disable:  # a silent bar (run.progress=false) needs no thread
             self._thread = threading.Thread(target=self._run, name="ddmr-progress", daemon=True)
             self._thread.start()
 
+    def _due(self) -> bool:
+        b = self.bar
+        if b.format_dict["elapsed"] < getattr(b, "delay", 0):
+            return False
+        return b.last_print_t <= b.start_t or time.time() - b.last_print_t >= self.every
+
     def _run(self) -> None:
-        while not self._stop.wait(self.every):
+        while not self._stop.wait(1.0):
             advanced = self.poll() if self.poll is not None else 0
             if advanced:
-                self.bar.update(advanced)
-            elif self.bar.format_dict["elapsed"] >= getattr(self.bar, "delay", 0):  # tqdm's delay: not drawn yet
+                self.bar.n += advanced  # counted now, drawn when due (tqdm's update would wait for mininterval)
+            if self._due():
                 self.bar.refresh()
+                self.bar.last_print_t = time.time()  # tqdm's record of its last draw (refresh leaves it)
             if self.poll is not None and self.bar.total is not None and self.bar.n >= self.bar.total:
                 self.bar.close()  # before what follows is printed (a sweep's summary)
                 return
@@ -229,4 +244,4 @@ class SweepWatch:
             self._bar.close()
 
 
-__all__ = ["LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging"]
+__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging"]

@@ -162,6 +162,9 @@ def test_one_writer_per_dir_and_the_lock_goes_with_its_holder(tmp_path):
             with jobdir.DirLock(tmp_path / "d"):
                 pass
         assert f"in use by pid {os.getpid()} on {holder['host']}" in str(info.value)
+        assert jobdir.read_holder(tmp_path / "d") == holder  # the refused writer left the record alone
+        assert jobdir._held(tmp_path / "d") == holder  # the probe sees it held
+    assert jobdir._held(tmp_path / "d") is None and (tmp_path / "d" / jobdir.LOCK).is_file()  # released, kept
     with jobdir.DirLock(tmp_path / "d"):  # released: the next writer gets it
         pass
 

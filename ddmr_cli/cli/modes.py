@@ -82,7 +82,7 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
 
     largest = None
     shown = multirun and bool(base.run.get("progress", True))
-    for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown):
+    for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown, leave=False):
         current = job["overrides"]
         try:
             cfg = compose(current) if multirun else base

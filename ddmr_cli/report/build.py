@@ -421,8 +421,7 @@ def build(path, out=None, margin=None, figures: bool = True, progress: bool = Tr
     from ddmr_cli.progress import Ticker, bar
 
     margin = Margin.parse(margin)
-    # drawn after 1 s: a report refused at once (no such dir) prints its one error line only
-    with bar(None, "report", "steps", progress, delay=1.0) as b, Ticker(b):
+    with bar(None, "report", "steps", progress) as b, Ticker(b):  # a refused report: its one error line only
         b.set_postfix_str("reading the jobs", refresh=False)
         data = load(path)
         out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
