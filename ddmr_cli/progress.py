@@ -78,12 +78,6 @@ class Silent:
     def refresh(self) -> None:
         pass
 
-    def reset(self, total=None) -> None:
-        self.total = total
-
-    def set_postfix_str(self, text: str = "", refresh: bool = True) -> None:
-        pass
-
     def close(self) -> None:
         pass
 

@@ -417,22 +417,21 @@ class Report:
 
 def build(path, out=None, margin=None, figures: bool = True, progress: bool = True) -> Path:
     """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`);
-    ``progress``: a bar over reading the jobs, the sections and the figures, with an ETA (:mod:`ddmr_cli.progress`)."""
+    ``progress``: a bar over the sections and the figures, with an ETA (:mod:`ddmr_cli.progress`), drawn once the
+    report's dir is locked, so a refused report prints its one error line only."""
     from ddmr_cli.progress import Ticker, bar
 
     margin = Margin.parse(margin)
-    with bar(None, "report", "steps", progress) as b, Ticker(b):  # a refused report: its one error line only
-        b.set_postfix_str("reading the jobs", refresh=False)
-        data = load(path)
-        out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
+    data = load(path)  # reading the jobs' tables: about 1 s for 72 jobs
+    out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
 
-        def write(root: Path) -> Path:
-            report = Report(data, root, margin, figures, final=out_dir, step=b.update)
-            b.reset(total=report.steps())
-            b.set_postfix_str(f"{len(data.jobs)} jobs", refresh=False)
+    def write(root: Path) -> Path:
+        report = Report(data, root, margin, figures, final=out_dir)
+        with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs") as b, Ticker(b):
+            report.step = b.update
             return report.build()
 
-        return staged(out_dir, write)
+    return staged(out_dir, write)
 
 
 # --- one report per output dir, moved in whole ---------------------------------------------------------------
