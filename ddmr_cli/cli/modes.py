@@ -47,6 +47,8 @@ class Mode:
     multirun: ClassVar[bool] = True
     #: the kind of lock the output dir is held with (:class:`ddmr_cli.storage.jobdir.DirLock`)
     lock_kind: ClassVar[str] = "sweep"
+    #: :meth:`watch` draws a bar over the jobs (Hydra's INFO lines are then kept off the terminal)
+    draws_bar: ClassVar[bool] = False
 
     def plan(self, base: DictConfig, overrides: list[str], parsed, compose: Callable[[list[str]], DictConfig]) -> Plan:
         """The jobs and the session's overrides, every job composed and validated (raises ConfigError)."""
@@ -62,17 +64,25 @@ class Mode:
         """The exit status, read from the output dir as it is on disk."""
         raise NotImplementedError
 
+    def watch(self, out_dir: Path, jobs: Sequence[dict], enabled: bool):
+        """A context manager that shows the launch's progress while Hydra runs (nothing by default)."""
+        import contextlib
+
+        return contextlib.nullcontext()
+
 
 def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: Callable[[list[str]], DictConfig]):
     """Compose and validate every job (the model is built: derived numbers fail here); then the memory budget
     of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
     job's overrides."""
+    from ddmr_cli import progress
     from ddmr_cli.config import budget
     from ddmr_cli.config.validate import check_additions, job_estimate, message, validate_config
     from ddmr_cli.errors import ConfigError
 
     largest, work = None, 0
-    for job in jobs:
+    shown = multirun and bool(base.run.get("progress", True))
+    for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown, leave=False):
         current = job["overrides"]
         try:
             cfg = compose(current) if multirun else base
@@ -136,6 +146,8 @@ class Sweep(Mode):
     """A sweep (``-m``): Hydra's sweeper expands the overrides into jobs; every job is composed and validated
     before anything is written, and none may write into another's dir or outside the sweep dir."""
 
+    draws_bar = True
+
     def plan(self, base, overrides, parsed, compose):
         from ddmr_cli.config.plan import plan_jobs
 
@@ -173,6 +185,13 @@ class Sweep(Mode):
 
         jobdir.clean_leftovers(out_dir, [job["dir"] for job in jobs])
         print(f"ddmr: sweep of {len(jobs)} jobs validated -> {out_dir}", file=sys.stderr)
+
+    def watch(self, out_dir, jobs, enabled):
+        """A bar over the jobs, advanced as their summaries appear (:class:`ddmr_cli.progress.SweepWatch`)."""
+        from ddmr_cli.progress import SweepWatch
+        from ddmr_cli.storage import io
+
+        return SweepWatch(out_dir, [job["dir"] for job in jobs], io.SUMMARY, enabled)
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.storage import sweep

@@ -20,7 +20,7 @@ import difflib
 import math
 import re
 from types import MappingProxyType
-from typing import Any, Iterable, Iterator
+from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -191,6 +191,15 @@ def _free_form(cfg: DictConfig) -> list[str]:
     return out
 
 
+def unknown_key(parents: Sequence[str], name: str, fields: Iterable[str]) -> str:
+    """``unknown key run.nruns (did you mean run.n_runs?); run has no key 'nruns'``: the key ``parents.name``
+    that a schema with ``fields`` does not have, with the closest field when one is close (difflib)."""
+    close = difflib.get_close_matches(name, list(fields), n=1)
+    hint = f" (did you mean {'.'.join([*parents, close[0]])}?)" if close else ""
+    return (f"unknown key {'.'.join([*parents, name])}{hint}; {'.'.join(parents) or 'the config'} has no key "
+            f"{name!r}")
+
+
 def check_additions(cfg: DictConfig, overrides: Iterable[str], groups: Iterable[str] = ()) -> None:
     """Refuse ``+key=value`` (and ``++``) that adds a key a schema does not have (``+run.nruns=5``): new keys
     are accepted only under a free-form dict (``tags.*``, ``terrain.zones.*``, ``scenario.phases.*``)."""
@@ -212,12 +221,9 @@ def check_additions(cfg: DictConfig, overrides: Iterable[str], groups: Iterable[
                 break  # a free-form dict (or a value): anything below it is the user's
             fields = [f.name for f in dataclasses.fields(node_type)]
             if part not in fields:
-                known = ".".join(parts[:i])
-                close = difflib.get_close_matches(part, fields, n=1)
-                hint = f" (did you mean {'.'.join([*parts[:i], close[0]])}?)" if close else ""
                 raise ConfigError(ov.input_line.partition("=")[0], ov.value(),
-                                  f"unknown key {key}{hint}; {known or 'the config'} has no key {part!r}. New keys "
-                                  f"are accepted only under a free-form dict: {', '.join(_free_form(cfg))}")
+                                  f"{unknown_key(parts[:i], part, fields)}. New keys are accepted only under a "
+                                  f"free-form dict: {', '.join(_free_form(cfg))}")
             node = node[part]
 
 
@@ -326,6 +332,6 @@ def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.
     return budget.estimate(sim, int(cfg.run.n_runs), len(kept))
 
 
-__all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions",
+__all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions", "unknown_key",
            "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "DerivedError",
            "KEEP_FORMS"]

@@ -46,6 +46,7 @@ import tempfile
 from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
+from typing import Callable
 
 from ddmr_cli.compiled import AVAILABLE, jit_enabled
 
@@ -223,8 +224,9 @@ def stepper_for(law_module: str, identity: str = "") -> ModuleType:
     return module
 
 
-def compiled_run_chunk(law_module: str, args: tuple):
-    """The step loop's ``run_chunk`` for a call with these arguments, loaded from the disk cache or compiled now.
+def compiled_run_chunk(law_module: str, args: tuple, compiling: Callable[[], None] | None = None):
+    """The step loop's ``run_chunk`` for a call with these arguments, loaded from the disk cache or compiled now
+    (``compiling()`` is called first then: the copy has no cache entry yet, about 10 s of compiling follows).
 
     What numba's cache hands back is checked against the call's own signature (a cheap set comparison); an
     entry compiled for another call is named on stderr, deleted, and the loop recompiled, so a stale or
@@ -238,6 +240,8 @@ def compiled_run_chunk(law_module: str, args: tuple):
     signature = tuple(typeof(arg) for arg in args)
     path = Path(module.__file__)
     entries = sorted((path.parent / "__pycache__").glob(f"{path.stem}.*"))
+    if not entries and compiling is not None:
+        compiling()
     try:
         function.compile(signature)
         problem = None if set(function.overloads) == {signature} else "was compiled for another call"

@@ -262,7 +262,8 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
 
 
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
-             progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True) -> SimulationResult:
+             progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True,
+             compiling: Callable[[], None] | None = None) -> SimulationResult:
     """Run one batch: one run per seed, all advanced together.
 
     Parameters
@@ -279,6 +280,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     bands : bool
         Also compute the mean and 5-95 % band over the seeds of a few channels at every grid step
         (:mod:`ddmr_cli.engine.bands`; ``SimulationResult.bands``).
+    compiling : callable(), optional
+        Called just before the step loop is compiled (no compiled copy for this controller and call is cached).
 
     Returns
     -------
@@ -333,7 +336,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                 args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
                         slot, band_buffer, first)
                 if loop is None:
-                    loop = compiled_run_chunk(controller.laws.__name__, args + (0, n_runs))
+                    loop = compiled_run_chunk(controller.laws.__name__, args + (0, n_runs), compiling)
 
                 def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
                     noise.next_chunk(n, xi, block)

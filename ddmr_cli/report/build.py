@@ -18,7 +18,7 @@ from ddmr_cli.report import verdicts as V
 from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten, load
-from ddmr_cli.report.figures import common_seed, make_figures
+from ddmr_cli.report.figures import FIGURE_METHODS, common_seed, make_figures
 from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
@@ -57,8 +57,9 @@ class Report:
     moved into, the ``--out`` its markdown names (default ``out``)."""
 
     def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True,
-                 final: Path | None = None):
+                 final: Path | None = None, step=None):
         self.data, self.out, self.margin = data, out, margin or Margin()
+        self.step = step or (lambda n=1: None)  # advances the report's progress bar
         self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
         self.styles = StyleBook((j.controller for j in data.jobs), data.displays())
@@ -369,7 +370,7 @@ class Report:
             self.add("## Figures", "", "Not drawn (`ddmr report --no-figures`); the tables below hold every number.",
                      "")
             return
-        figures, notes = make_figures(self.data, self.figures_dir, self.styles)
+        figures, notes = make_figures(self.data, self.figures_dir, self.styles, done=self.step)
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
         shown = self.data.displays()
@@ -398,32 +399,47 @@ class Report:
             self.add(f"- {self.link(path)}: {what}")
         self.add("", "Units of every metric: " + "; ".join(f"{m} [{u}]" for m, (u, _) in METRICS.items()) + ".", "")
 
+    #: the sections, in order (``figures`` also advances the bar once per figure task)
+    SECTIONS = ("header", "configuration", "status", "table3", "table4", "verdicts", "effort", "estimation",
+                "nn_share", "realism", "segments", "figures", "files")
+
+    def steps(self) -> int:
+        """The steps of :meth:`build` for its progress bar: one per section, one per figure task."""
+        return len(self.SECTIONS) + (len(self.data.scenarios) * len(FIGURE_METHODS) if self.draw_figures else 0)
+
     def build(self) -> Path:
         stats = T.stats_frame(self.data)
-        self.header()
-        self.configuration()
-        self.status()
-        self.table3()
-        self.table4(stats)
-        self.verdicts()
-        self.effort(stats)
-        self.estimation(stats)
-        self.nn_share()
-        realism.section(self)
-        self.segments()
-        self.figures()
-        self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
-        self.files()
+        with_stats = {"table4", "effort", "estimation"}
+        for name in self.SECTIONS:
+            if name == "realism":
+                realism.section(self)
+            elif name == "files":
+                self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
+                self.files()
+            else:
+                getattr(self, name)(*([stats] if name in with_stats else []))
+            self.step()
         io.write_text(self.out / "report.md", "\n".join(self.md))
         return self.out
 
 
-def build(path, out=None, margin=None, figures: bool = True) -> Path:
-    """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`)."""
+def build(path, out=None, margin=None, figures: bool = True, progress: bool = True) -> Path:
+    """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`);
+    ``progress``: a bar over the sections and the figures, with an ETA (:mod:`ddmr_cli.progress`), drawn once the
+    report's dir is locked, so a refused report prints its one error line only."""
+    from ddmr_cli.progress import Ticker, bar
+
     margin = Margin.parse(margin)
-    data = load(path)
+    data = load(path)  # reading the jobs' tables: about 1 s for 72 jobs
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return staged(out_dir, lambda root: Report(data, root, margin, figures, final=out_dir).build())
+
+    def write(root: Path) -> Path:
+        report = Report(data, root, margin, figures, final=out_dir)
+        with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs") as b, Ticker(b):
+            report.step = b.update
+            return report.build()
+
+    return staged(out_dir, write)
 
 
 # --- one report per output dir, moved in whole ---------------------------------------------------------------

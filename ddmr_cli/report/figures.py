@@ -744,7 +744,7 @@ def workers(n_tasks: int) -> int:
     return max(1, min(n, n_tasks))
 
 
-def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
+def _run_forked(data, out_dir, styles, tasks, n: int, done=lambda: None) -> list:
     import multiprocessing
     import queue
 
@@ -772,6 +772,7 @@ def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
                 raise RuntimeError(f"figure {tasks[i][1]} of {tasks[i][0]} failed:\n{error}")
             results[i] = result
             pending -= 1
+            done()
     finally:
         for p in procs:
             p.join(timeout=5)
@@ -794,10 +795,10 @@ def _warm_up() -> None:
     plt.close(fig)
 
 
-def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None
+def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, done=lambda: None
                  ) -> tuple[dict[str, list[Figure]], list[str]]:
     """All figures, per scenario (in forked processes when the machine has several cores); returns them and
-    notes on what was skipped."""
+    notes on what was skipped. ``done()`` is called as each figure task ends (the report's progress bar)."""
     styles = styles or StyleBook((j.controller for j in data.jobs), data.displays())
     tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
     for scenario in data.scenarios:  # read the series (and bands) once, before any fork
@@ -805,9 +806,12 @@ def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = Non
     n = workers(len(tasks))
     if n > 1:
         _warm_up()
-        results = _run_forked(data, Path(out_dir), styles, tasks, n)
+        results = _run_forked(data, Path(out_dir), styles, tasks, n, done)
     else:
-        results = [make_one(data, Path(out_dir), styles, task) for task in tasks]
+        results = []
+        for task in tasks:
+            results.append(make_one(data, Path(out_dir), styles, task))
+            done()
     figures: dict[str, list[Figure]] = {s: [] for s in data.scenarios}
     notes: list[str] = []
     for (scenario, _), (figs, task_notes) in zip(tasks, results):
