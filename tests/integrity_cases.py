@@ -55,9 +55,9 @@ CASES = (
                                                        "realistic"),
     Case("unknown controller key", ("+controller.foo=1",), 2, "+controller.foo=1: unknown key controller.foo"),
     Case("nested typo", ("+simulation.dtt=0.001",), 2, "did you mean simulation.dt?"),
-    Case("typo set", ("run.nruns=5",), 2, "run.nruns=5: unknown key (did you mean run.n_runs?)"),
+    Case("typo set", ("run.nruns=5",), 2, "run.nruns=5: unknown key run.nruns (did you mean run.n_runs?)"),
     Case("controller typo set", ("controller.switchng_gain=3",), 2,
-         "controller.switchng_gain=3: unknown key (did you mean controller.switching_gain?)"),
+         "controller.switchng_gain=3: unknown key controller.switchng_gain (did you mean controller.switching_gain?)"),
     Case("unknown cluster key", ("+cluster.foo=1",), 2, "cluster.foo=1: unknown cluster key"),
     # _target_ swaps
     Case("robot as controller", ("controller._target_=ddmr_cli.model.robot.Robot",), 2, "must be a WheelController"),

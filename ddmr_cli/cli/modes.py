@@ -113,8 +113,9 @@ SMALL_SWEEP_RUN_STEPS = 20_000_000
 
 def small_local_sweep(base: DictConfig, parsed, n_jobs: int, work: int) -> bool:
     """True when a sweep should run in this process (see :data:`SMALL_SWEEP_JOBS`): few jobs, little simulation,
-    and the launcher is the default one, not chosen on the command line."""
-    chosen = any(o.key_or_group.lstrip("+~") in ("launcher", "hydra/launcher") for o in parsed)
+    and the launcher is the default one, neither chosen nor configured (``cluster.*``) on the command line."""
+    chosen = any(o.key_or_group.lstrip("+~") in ("launcher", "hydra/launcher")
+                 or o.key_or_group.lstrip("+~").startswith(("cluster.", "hydra.launcher.")) for o in parsed)
     default = str((base.hydra.runtime.get("choices") or {}).get("launcher")) == "local"
     return not chosen and default and n_jobs <= SMALL_SWEEP_JOBS and work <= SMALL_SWEEP_RUN_STEPS
 
