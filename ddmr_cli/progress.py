@@ -17,6 +17,7 @@ Who shows what:
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -30,8 +31,9 @@ LOG_EVERY = 10.0
 #: seconds between two redraws of a bar on a terminal (tqdm's mininterval)
 TTY_EVERY = 0.2
 #: seconds before a bar is first drawn (tqdm's delay): work done sooner, or refused at once with one error line,
-#: draws none
-DELAY = 1.0
+#: draws none; ``DDMR_PROGRESS_DELAY`` sets it (0: every bar at once, so a test does not depend on how fast a
+#: machine is)
+DELAY = float(os.environ.get("DDMR_PROGRESS_DELAY", "1.0"))
 _LINE_FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f} %), {elapsed} elapsed, {remaining} left"
 
 
