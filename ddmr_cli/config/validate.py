@@ -27,7 +27,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.checks import integer, positive
 from ddmr_cli.config import budget
-from ddmr_cli.config.build import build_simulation, check_targets
+from ddmr_cli.config.build import USER_TARGETS, build_simulation, check_targets
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.config import display
 
@@ -36,7 +36,7 @@ KEEP_FORMS = "a list of seeds, first:N (the job's first N seeds), all or none"
 #: config nodes that instantiate a class -> the base class (module, name) their _target_ must be or extend;
 #: a trajectory is any class of ddmr_cli.model.trajectory (a protocol, no base class)
 TARGET_BASES = MappingProxyType({
-    "controller": ("ddmr_cli.control.base", "WheelController"),
+    "controller": USER_TARGETS["controller"],  # the one definition of a controller's base class
     "controller.ndo": ("ddmr_cli.control.ndo", "NonlinearDisturbanceObserver"),
     "controller.nn": ("ddmr_cli.control.rbf", "RBFNetworkObserver"),
     "trajectory": ("ddmr_cli.model.trajectory", None),

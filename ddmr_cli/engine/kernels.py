@@ -49,6 +49,7 @@ from types import ModuleType
 from typing import Callable
 
 from ddmr_cli.compiled import AVAILABLE, jit_enabled
+from ddmr_cli.engine.controller_slot import DEFAULT_MODULE
 
 _TEMPLATE_MODULE = "ddmr_cli.engine.stepper"
 _SLOT_MODULE = "ddmr_cli.engine.controller_slot"
@@ -120,7 +121,7 @@ def inlined_sources(law_module: str) -> list[Path]:
     module = importlib.import_module(law_module)
     start = {_TEMPLATE_MODULE, law_module, "ddmr_cli.compiled"}
     if not hasattr(module, "estimates"):
-        start.add(_default_module())
+        start.add(DEFAULT_MODULE)
     seen: set[str] = set()
     todo = list(start)
     while todo:
@@ -133,12 +134,6 @@ def inlined_sources(law_module: str) -> list[Path]:
             todo.extend(_imported_modules(path) - seen)
     files = {(_module_file(n) if n != law_module else Path(inspect.getfile(module))) for n in seen - {_SLOT_MODULE}}
     return sorted(p.resolve() for p in files if p is not None)
-
-
-def _default_module() -> str:
-    from ddmr_cli.engine.controller_slot import DEFAULT_MODULE
-
-    return DEFAULT_MODULE
 
 
 def sources_digest(law_module: str, read=Path.read_bytes) -> str:
@@ -161,7 +156,7 @@ def _source_for(law_module: str) -> str:
 
     def point(m):  # a law the controller does not define (only ``estimates`` is optional) keeps the slot's default
         optional_default = m.group(1) == "estimates" and not hasattr(module, "estimates")
-        source_module = _default_module() if optional_default else law_module
+        source_module = DEFAULT_MODULE if optional_default else law_module
         return f"from {source_module} import {m.group(1)} as {m.group(2)}"
 
     source, count = _LAW_IMPORT.subn(point, template)
