@@ -9,6 +9,7 @@ mujoco is in the test extra, so these run in CI; they are skipped only where it 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -345,3 +346,42 @@ def test_ddmr_bench_times_the_plant_and_splits_the_wall_time():
     print(f"{r.rate:,.0f} steps/s, MuJoCo {r.mujoco / r.wall:.0%}, plant {r.plant / r.wall:.0%}")
     assert (r.runs, r.steps, r.threads, r.diverged) == (3, 50, 1, 0)
     assert r.rate > 0 and 0 < r.mujoco and 0 <= r.plant and r.mujoco + r.plant <= r.wall
+
+
+# -- through the engine and the command line -----------------------------------------------------------------------
+
+def _engine_run(threads):
+    from ddmr_cli import paper_simulation, simulate
+
+    sim = paper_simulation("controller=smc_ndo_nno", "plant=mujoco", "simulation.duration=0.3",
+                           "terrain.zones.flat.roughness=100", f"plant.threads={threads}")
+    return simulate(sim, [3, 4, 5], keep_series=[4])
+
+
+def test_the_engine_on_the_physics_plant_is_bit_identical_whatever_the_thread_count():
+    """The controllers drive the plant through the engine (control half, plant step, accounting half); the plant's
+    worker threads change nothing, on very rough ground from the start."""
+    one, two = _engine_run(1), _engine_run(2)
+    assert not one.diverged.any()
+    for name, values in one.metrics.items():
+        np.testing.assert_array_equal(two.metrics[name], values, err_msg=name)
+    for channel, values in one.series[4].items():
+        np.testing.assert_array_equal(two.series[4][channel], values, err_msg=channel)
+    d = one.series[4]["d_true_right"]
+    assert np.isfinite(d).all() and np.abs(d).max() > 10.0  # the ground disturbs the wheels
+
+
+@pytest.mark.slow
+def test_ddmr_run_sweeps_both_plants_and_the_report_puts_them_side_by_side(tmp_path):
+    """`ddmr run -m ... plant=wheel,mujoco report=true`: every job ran on its plant (its saved config says which),
+    and the report's claims section compares the plants."""
+    import subprocess
+
+    out = tmp_path / "sweep"
+    done = subprocess.run([str(Path(sys.executable).with_name("ddmr")), "run", "-m", "controller=smc,smc_ndo,smc_ndo_nno",
+                           "plant=wheel,mujoco", "run.n_runs=3", "simulation.duration=4", "run.progress=false",
+                           "report=true", f"hydra.sweep.dir={out}"], capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = next(out.rglob("report.md")).read_text()
+    assert "### The claims on both plants" in report
+    assert "paper_1@mujoco" in report

@@ -131,7 +131,28 @@ def build_simulation(cfg: DictConfig) -> Simulation:
         sensor=Sensor(**OmegaConf.to_container(cfg.sensor, resolve=True)),
         actuator=Actuator(**OmegaConf.to_container(cfg.actuator, resolve=True)),
         control_rate=None if cfg.control.rate is None else float(cfg.control.rate),
+        plant=build_plant(cfg.get("plant")),
     )
+
+
+def build_plant(node) -> Any:
+    """The plant factory of ``plant`` (:attr:`~ddmr_cli.engine.simulation.Simulation.plant`): None for the wheel
+    plant (no node, or ``plant.name: wheel``), else ``ddmr_cli.plant.<name>.factory(node)``. ConfigError on
+    ``plant.name`` for a name without such a module."""
+    import importlib
+
+    from ddmr_cli.plant.wheel import NAME as WHEEL
+
+    name = WHEEL if node is None else str(node.get("name", WHEEL))
+    if name == WHEEL:
+        return None
+    try:
+        module = importlib.import_module(f"ddmr_cli.plant.{name}")
+        factory = module.factory
+    except (ImportError, AttributeError):
+        raise ConfigError("plant.name", name, "must name a plant of ddmr_cli.plant with a factory (the "
+                          "conf/plant options: wheel, mujoco)") from None
+    return factory(OmegaConf.to_container(node, resolve=True))
 
 
 def seeds_of(cfg: DictConfig) -> list[int]:

@@ -453,6 +453,9 @@ class DDMRConfig:
     actuator: ActuatorConfig = param(unit="", help="PWM, delay and driver lag before the motor (conf/actuator)",
                                      model=10)
     control: ControlConfig = param(unit="", help="the controller's rate", model=10, factory=ControlConfig)
+    plant: Any = param(unit="", help="the plant the controllers drive (conf/plant): wheel, the paper's 2x2 wheel "
+                       "model (default); mujoco, the robot as a rigid body on a heightfield (the physics extra; "
+                       "its keys and units in conf/plant/mujoco.yaml)", model=13, factory=lambda: {"name": "wheel"})
     metrics: MetricsConfig = param(unit="", help="how the run metrics are counted", model=7,
                                    factory=MetricsConfig)
     run: RunConfig = param(unit="", help="seeds, kept series and display settings of a job", factory=RunConfig)

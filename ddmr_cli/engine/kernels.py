@@ -227,35 +227,55 @@ def compiled_run_chunk(law_module: str, args: tuple, compiling: Callable[[], Non
     entry compiled for another call is named on stderr, deleted, and the loop recompiled, so a stale or
     corrupted cache entry never runs (issue 31)."""
     module = stepper_for(law_module, call_identity(args))
-    function = module.run_chunk
+    [function] = _checked(module, [("run_chunk", args)], compiling)
+    return function
+
+
+def compiled_external_step(law_module: str, control_args: tuple, account_args: tuple,
+                           compiling: Callable[[], None] | None = None):
+    """The external plant's two halves of a step, ``external_control`` and ``external_account``, for calls with
+    these arguments: one copy of the step loop holds both (its name hashes both calls' types), checked as
+    :func:`compiled_run_chunk` checks its loop."""
+    identity = "external:" + call_identity(control_args) + "|" + call_identity(account_args)
+    module = stepper_for(law_module, identity)
+    return tuple(_checked(module, [("external_control", control_args), ("external_account", account_args)],
+                          compiling))
+
+
+def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Callable[[], None] | None) -> list:
+    """The copy's functions ``calls`` names, each compiled (or loaded) for exactly its call's signature."""
+    functions = [getattr(module, name) for name, _ in calls]
     if not jit_enabled():
-        return function
+        return functions
     from numba import njit, typeof
 
-    signature = tuple(typeof(arg) for arg in args)
+    signatures = [tuple(typeof(arg) for arg in args) for _, args in calls]
     path = Path(module.__file__)
     entries = sorted((path.parent / "__pycache__").glob(f"{path.stem}.*"))
     if not entries and compiling is not None:
         compiling()
     try:
-        function.compile(signature)
-        problem = None if set(function.overloads) == {signature} else "was compiled for another call"
+        for function, signature in zip(functions, signatures):
+            function.compile(signature)
+        problem = None if all(set(f.overloads) == {sig} for f, sig in zip(functions, signatures)) \
+            else "was compiled for another call"
     except Exception as exc:  # noqa: BLE001 - a cache entry that does not even load is as stale as a wrong one
         if not entries:
             raise  # nothing was loaded: a genuine compile error
         problem = f"does not load ({type(exc).__name__}: {exc})"
     if problem is None:
-        return function
+        return functions
     print(f"ddmr: warning: the cached step loop {path} (entries {', '.join(p.name for p in entries)}) {problem}; "
           f"deleting it and recompiling", file=sys.stderr)
     for entry in entries:
         entry.unlink(missing_ok=True)
-    function = njit(cache=True, nogil=True)(function.py_func)
-    function.compile(signature)
-    if set(function.overloads) != {signature}:
-        raise RuntimeError(f"{path}: the recompiled step loop does not match its call (delete {cache_dir()} and "
-                           f"report this)")
-    return function
+    functions = [njit(cache=True, nogil=True)(f.py_func) for f in functions]
+    for function, signature in zip(functions, signatures):
+        function.compile(signature)
+        if set(function.overloads) != {signature}:
+            raise RuntimeError(f"{path}: the recompiled step loop does not match its call (delete {cache_dir()} "
+                               f"and report this)")
+    return functions
 
 
 def check_single_signature(function) -> None:
@@ -266,5 +286,5 @@ def check_single_signature(function) -> None:
                            f"its cache key must name one (delete {cache_dir()} and report this)")
 
 
-__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_run_chunk", "inlined_sources",
-           "sources_digest", "stepper_for"]
+__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_external_step", "compiled_run_chunk",
+           "inlined_sources", "sources_digest", "stepper_for"]

@@ -23,7 +23,7 @@ from ddmr_cli.control.base import KINDS, STABILITY_LIMIT, SURFACE, WheelControll
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
-from ddmr_cli.engine.kernels import check_single_signature, compiled_run_chunk
+from ddmr_cli.engine.kernels import check_single_signature, compiled_external_step, compiled_run_chunk
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
 from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SimulationResult, series_channels
@@ -35,6 +35,7 @@ from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.sensor import NOISE_CHANNELS, SENSOR_FIELDS, Sensor
 from ddmr_cli.model.terrain import Terrain
 from ddmr_cli.model.trajectory import StraightLine, Trajectory, reference_table
+from ddmr_cli.plant.base import ExternalPlant, check_state
 
 INTEGRATORS = ("euler", "rk4")
 #: bytes of standard normals per run and step buffered in a chunk (the only per-step buffer of unkept runs)
@@ -85,6 +86,11 @@ class Simulation:
         PWM, delay and driver lag between the controller and the motor (docs/model.md §10).
     control_rate : float or None
         The controller's rate [Hz], dividing the plant's ``1 / dt``; None: every plant step.
+    plant : callable(Simulation, threads) -> ExternalPlant, or None
+        None: the paper's wheel plant, inlined in the compiled step loop (docs/model.md §1, §5). Else a factory
+        of an external plant (:class:`ddmr_cli.plant.base.ExternalPlant`, e.g. ``plant=mujoco``, docs/model.md
+        §13) for this simulation (``threads``: :func:`simulate`'s), stepped from Python between the compiled
+        control and accounting halves.
     """
 
     controller: WheelController
@@ -104,6 +110,7 @@ class Simulation:
     sensor: Sensor
     actuator: Actuator
     control_rate: float | None
+    plant: Callable[..., ExternalPlant] | None
 
     @property
     def n_steps(self) -> int:
@@ -261,6 +268,141 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
         estimation=estimation)
 
 
+@dataclass
+class _Batch:
+    """What the step loops of one batch share (the arrays :func:`simulate` sets up)."""
+
+    world: World
+    plant: object  # the wheel plant's parameters (ddmr_cli.model.robot.Plant): its motor constants serve both kinds
+    params: object
+    runs: np.ndarray
+    controller_state: np.ndarray
+    sums: np.ndarray
+    accumulators: np.ndarray
+    series: np.ndarray
+    slot: np.ndarray
+    noise: NoiseStreams
+    sensor_noise: SensorNoise | None
+    xs: np.ndarray
+    bands: BandAccumulator | None
+    chunk: int
+
+    def chunks(self, n_steps: int):
+        """The chunks of a run of ``n_steps`` steps: ``(k0, n, xi, band_buffer, first, end)`` for each, the first
+        step and the size, the standard normals' buffer (reused while the size is the same; :meth:`draw` fills
+        it), the band buffer and its range of grid points (the sensor normals' buffer is :attr:`xs`)."""
+        n_runs, xi, k0 = len(self.runs), None, 0
+        while k0 < n_steps:
+            n = min(self.chunk, n_steps - k0)
+            if xi is None or xi.shape[1] != n:
+                xi = np.empty((n_runs, n, NoiseStreams.channels))
+                if self.sensor_noise is not None:
+                    self.xs = np.empty((n_runs, n, len(NOISE_CHANNELS)))
+            first, end = self.bands.grid_range(k0, n) if self.bands is not None else (0, 0)
+            yield k0, n, xi, np.empty((n_runs, end - first, len(BAND_CHANNELS))), first, end
+            k0 += n
+
+    def draw(self, n: int, xi: np.ndarray, block: tuple[int, int]) -> None:
+        """This chunk's normals of the runs ``block`` (first, end)."""
+        self.noise.next_chunk(n, xi, block)
+        if self.sensor_noise is not None:
+            self.sensor_noise.next_chunk(n, self.xs, block)
+
+
+def _run_compiled(b: _Batch, law_module: str, n_steps: int, threads: int, progress, compiling) -> None:
+    """The wheel plant: every run advanced a chunk of steps at a time by the compiled loop, in threads."""
+    n_runs = len(b.runs)
+    loop = None  # one compiled copy per complete call signature (kernels.py), chosen at the first chunk
+    n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
+    blocks = _split(n_runs, n_threads)
+    pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
+    try:
+        with np.errstate(all="ignore"):
+            for k0, n, xi, band_buffer, first, end in b.chunks(n_steps):
+                args = (k0, n, b.world, b.plant, b.params, b.runs, b.controller_state, xi, b.xs, b.sums,
+                        b.accumulators, b.series, b.slot, band_buffer, first)
+                if loop is None:
+                    loop = compiled_run_chunk(law_module, args + (0, n_runs), compiling)
+
+                def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
+                    b.draw(n, xi, block)
+                    loop(*args, *block)
+
+                _each(pool, advance, blocks)
+                if b.bands is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
+                    _each(pool, lambda points: b.bands.add_chunk(band_buffer, first, points),
+                          _split(end - first, n_threads))
+                if k0 == 0:
+                    check_single_signature(loop)
+                if progress is not None:
+                    progress(k0 + n, n_steps)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+
+
+#: steps between progress reports of an external plant (its steps are slow: a report every chunk would be rare)
+_EXTERNAL_PROGRESS_STEPS = 100
+
+
+def _run_external(b: _Batch, law_module: str, plant: ExternalPlant, seeds: list[int], n_steps: int, progress,
+                  compiling) -> None:
+    """An external plant: at every step the compiled control half for all runs, the plant's step from Python (its
+    own threads), then the compiled accounting half on the plant's new state. The noise is drawn chunk by chunk
+    as for the wheel plant, so every stream a run draws is the same on both plants."""
+    n_runs = len(b.runs)
+    runs = b.runs
+    plant.reset(np.asarray(seeds, dtype=np.int64), np.column_stack([runs["x"], runs["y"], runs["theta"]]),
+                np.array(runs["w"]))
+    _take_state(runs, plant, n_runs)
+    step_out = np.zeros((n_runs, 6))
+    control = account = None
+    try:
+        with np.errstate(all="ignore"):
+            for k0, n, xi, band_buffer, first, end in b.chunks(n_steps):
+                b.draw(n, xi, (0, n_runs))
+                for j in range(n):
+                    k = k0 + j
+                    control_args = (k, j, b.world, b.plant, b.params, runs, b.controller_state, xi, b.xs, step_out)
+                    if control is None:
+                        control, account = compiled_external_step(law_module, control_args,
+                                                                  _account_args(b, k, step_out, band_buffer, first,
+                                                                                plant.state(), plant.true_disturbance()),
+                                                                  compiling)
+                    control(*control_args)
+                    plant.step(step_out[:, 0:2], step_out[:, 2])
+                    state = plant.state()
+                    account(*_account_args(b, k, step_out, band_buffer, first, state, plant.true_disturbance()))
+                    gone = plant.diverged() & (runs["divergence_step"] < 0)
+                    runs["divergence_step"][gone] = k
+                    if progress is not None and (k + 1) % _EXTERNAL_PROGRESS_STEPS == 0 and k + 1 < n_steps:
+                        progress(k + 1, n_steps)
+                if b.bands is not None:
+                    b.bands.add_chunk(band_buffer, first, (0, end - first))
+                if progress is not None:
+                    progress(k0 + n, n_steps)
+    finally:
+        close = getattr(plant, "close", None)
+        if close is not None:
+            close()
+
+
+def _account_args(b: _Batch, k: int, step_out: np.ndarray, band_buffer: np.ndarray, first: int, state, d) -> tuple:
+    return (k, b.world, b.plant, b.runs, b.controller_state, step_out, np.ascontiguousarray(d, dtype=float),
+            *(np.ascontiguousarray(state[key], dtype=float) for key in ("x", "y", "theta", "distance", "w")),
+            b.sums, b.accumulators, b.series, b.slot, band_buffer, first)
+
+
+def _take_state(runs: np.ndarray, plant: ExternalPlant, n_runs: int) -> None:
+    """The external plant's state at its reset into the run records (it settles the robot onto its ground: the
+    pose there is the plant's, not exactly the configured one)."""
+    state = plant.state()
+    check_state(state, n_runs)
+    for key in ("x", "y", "theta", "distance"):
+        runs[key] = state[key]
+    runs["w"] = state["w"]
+
+
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
              progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True,
              compiling: Callable[[], None] | None = None) -> SimulationResult:
@@ -276,7 +418,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     progress : callable(steps_done, steps_total), optional
         Called after every chunk of steps.
     threads : int
-        Threads advancing disjoint blocks of runs (0: every core); the numbers do not depend on it.
+        Threads advancing disjoint blocks of runs (0: every core); on an external plant, its worker threads
+        (unless its config sets them). The numbers do not depend on it.
     bands : bool
         Also compute the mean and 5-95 % band over the seeds of a few channels at every grid step
         (:mod:`ddmr_cli.engine.bands`; ``SimulationResult.bands``).
@@ -296,7 +439,6 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
     controller = sim.controller
     params = controller.law_parameters(NominalModel.from_robot(sim.robot), sim.control_dt)
-    loop = None  # one compiled copy per complete call signature (kernels.py), chosen at the first chunk
     acc = MetricAccumulator(n_runs, dt, sim.terrain.names, sim.scenario.names)
     band_acc = BandAccumulator(n_steps, dt) if bands else None
     world = _world(sim, n_steps, acc.hp, acc.hp_zi, acc.phase_base, band_acc)
@@ -319,43 +461,14 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     bytes_per_run_step = (_BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
                           + (8 * len(NOISE_CHANNELS) if sensor_noise is not None else 0))
     chunk = chunk_steps(bytes_per_run_step, n_runs)
-    plant, xi = sim.robot.plant(), None
-    n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
-    blocks = _split(n_runs, n_threads)
-    pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
-    try:
-        with np.errstate(all="ignore"):
-            k0 = 0
-            while k0 < n_steps:
-                n = min(chunk, n_steps - k0)
-                if xi is None or xi.shape[1] != n:
-                    xi = np.empty((n_runs, n, NoiseStreams.channels))
-                    xs = np.empty((n_runs, n, len(NOISE_CHANNELS))) if sensor_noise is not None else xs
-                first, end = band_acc.grid_range(k0, n) if band_acc is not None else (0, 0)
-                band_buffer = np.empty((n_runs, end - first, len(BAND_CHANNELS)))
-                args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
-                        slot, band_buffer, first)
-                if loop is None:
-                    loop = compiled_run_chunk(controller.laws.__name__, args + (0, n_runs), compiling)
-
-                def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
-                    noise.next_chunk(n, xi, block)
-                    if sensor_noise is not None:
-                        sensor_noise.next_chunk(n, xs, block)
-                    loop(*args, *block)
-
-                _each(pool, advance, blocks)
-                if band_acc is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
-                    _each(pool, lambda points: band_acc.add_chunk(band_buffer, first, points),
-                          _split(end - first, n_threads))
-                if k0 == 0:
-                    check_single_signature(loop)
-                k0 += n
-                if progress is not None:
-                    progress(k0, n_steps)
-    finally:
-        if pool is not None:
-            pool.shutdown()
+    plant = sim.robot.plant()
+    batch = _Batch(world, plant, params, runs, controller_state, acc.sums, accumulators, series, slot, noise,
+                   sensor_noise, xs, band_acc, chunk)
+    if sim.plant is None:
+        _run_compiled(batch, controller.laws.__name__, n_steps, threads, progress, compiling)
+    else:
+        _run_external(batch, controller.laws.__name__, sim.plant(sim, threads), seeds, n_steps, progress,
+                      compiling)
     diverged = runs["divergence_step"] >= 0
     divergence_time = np.where(diverged, runs["divergence_step"] * dt, np.nan)
     metrics = acc.finalize(accumulators)

@@ -154,3 +154,115 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
     run["w_d"][0], run["w_d"][1] = wd_R, wd_L
     if k0 + n_steps == world.reference.shape[0]:  # the run's last step: add its open block to its segments
         flush(sums, r, acc)
+
+
+# --- an external plant (ddmr_cli.plant.base) -------------------------------------------------------------------
+# The same laws as run_steps in the same order, split where the plant steps (from Python, between the two calls).
+# run_steps keeps its body in one function: numba increfs every array of ``world`` where a helper takes it, which
+# cost the wheel loop 2x when its body was split into shared helpers (measured). tests/test_external_plant.py
+# holds the two orchestrations to one another: the wheel plant stepped from Python matches run_steps.
+
+@law
+def external_control(k, j, world, plant, params, runs, controller_state, xi, xs, step_out):
+    """Step ``k`` (the ``j``-th of its chunk) of every run up to the plant's step: the control instant when it is
+    one, the motor's voltage and the step's disturbances, from the true state the run record holds (the plant's,
+    written by :func:`external_account`). Writes ``step_out[r] = (u_R, u_L, b, rough, zone, phase)`` for the
+    plant's step and the accounting after it."""
+    sen, m = world.sensor, world.control_steps
+    for r in range(runs.shape[0]):
+        run, st = runs[r], controller_state[r]
+        x, y, theta, dist, w_R, w_L = run["x"], run["y"], run["theta"], run["distance"], run["w"][0], run["w"][1]
+        if k == 0:
+            controller_start(params, st, w_R, w_L)
+            sensor.start(sen, run, w_R, w_L)
+        if k % m == 0:
+            external_control_instant(world, plant, params, run, st, k, xs, r, j, x, y, theta, w_R, w_L)
+        u_R, u_L = actuator.apply(world.actuator, run, k, run["u_sent"][0], run["u_sent"][1])
+        # this step's disturbances (5): the roughness is the ground's, scenario 2's damping scale acts on the motor
+        n_R = ou_step(world.ou_a[0], world.ou_b[0], run["noise"][0], xi[r, j, 0])
+        n_L = ou_step(world.ou_a[1], world.ou_b[1], run["noise"][1], xi[r, j, 1])
+        n_u = ou_step(world.ou_a[2], world.ou_b[2], run["noise"][2], xi[r, j, 2])
+        run["noise"][0], run["noise"][1], run["noise"][2] = n_R, n_L, n_u
+        phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
+        zone = zone_of(world.zone_edges, dist)
+        rough = world.roughness[zone] * world.roughness_on[phase]
+        b = damping_scale(world.uncertainty, n_u) if world.uncertainty_on[phase] else 1.0
+        step_out[r, 0], step_out[r, 1], step_out[r, 2], step_out[r, 3] = u_R, u_L, b, rough
+        step_out[r, 4], step_out[r, 5] = zone, phase
+
+
+@law
+def external_account(k, world, plant, runs, controller_state, step_out, d, x1, y1, theta1, dist1, w1, sums,
+                     accumulators, series, series_slot, bands, band_first):
+    """Step ``k`` of every run after the plant stepped, as :func:`run_steps` accounts it: the metrics (7), the
+    divergence rule, the seed bands and the kept series on the true state before the step (``d`` ``(n, 2)``: the
+    plant's true disturbance over it); then the plant's new state (``x1`` ... ``w1``) into the run records and the
+    encoders' true wheel angles one step on."""
+    for r in range(runs.shape[0]):
+        run, st = runs[r], controller_state[r]
+        x, y, theta, dist, w_R, w_L = run["x"], run["y"], run["theta"], run["distance"], run["w"][0], run["w"][1]
+        x_r, y_r, th_r = world.reference[k, 0], world.reference[k, 1], world.reference[k, 2]
+        e_x, e_y, e_th = pose_error(x, y, theta, x_r, y_r, th_r)
+        dev = deviation(x, y, x_r, y_r)
+        u_R, u_L, b, rough = step_out[r, 0], step_out[r, 1], step_out[r, 2], step_out[r, 3]
+        zone, phase = int(step_out[r, 4]), int(step_out[r, 5])
+        d_R, d_L = d[r, 0], d[r, 1]
+        diagnostics, surface, t = st["diagnostics"], world.surface, k * world.dt
+        s_R = diagnostics[surface, 0] if surface >= 0 else math.nan
+        s_L = diagnostics[surface, 1] if surface >= 0 else math.nan
+        saturated = run["saturated"][0] != 0 or run["saturated"][1] != 0
+        accumulate(sums, r, accumulators[r], k, world.settle_steps, world.zone_settle_steps, 1 + zone,
+                   world.phase_base + phase, t, dev, e_x, e_y, e_th, saturated, u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L,
+                   diagnostics, world.estimation, plant.back_emf_constant, plant.armature_resistance, world.hp,
+                   world.hp_zi)
+        if not dev <= world.divergence_bound and run["divergence_step"] < 0:
+            run["divergence_step"] = k
+        if world.bands and k % world.band_stride == 0:
+            band_row(bands[r, k // world.band_stride - band_first], dev, e_x, e_y, e_th, u_R, u_L, s_R, s_L)
+        slot = series_slot[r]
+        if slot >= 0:
+            wd_R, wd_L, uc_R, uc_L = run["w_d"][0], run["w_d"][1], run["u_command"][0], run["u_command"][1]
+            record(series[slot, k], t, x, y, theta, x_r, y_r, th_r, e_x, e_y, e_th, dev, dist, w_R, w_L,
+                   wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, rough, b, zone, diagnostics, world.recorded)
+        run["x"], run["y"], run["theta"], run["distance"] = x1[r], y1[r], theta1[r], dist1[r]
+        run["w"][0], run["w"][1] = w1[r, 0], w1[r, 1]
+        if world.sensor.encoder:
+            run["wheel_angle"][0] = sensor.wheel_angle(run["wheel_angle"][0], w_R, w1[r, 0], world.dt)
+            run["wheel_angle"][1] = sensor.wheel_angle(run["wheel_angle"][1], w_L, w1[r, 1], world.dt)
+        if k + 1 == world.reference.shape[0]:  # the run's last step: add its open block to its segments
+            flush(sums, r, accumulators[r])
+
+
+@law
+def external_control_instant(world, plant, params, run, st, k, xs, r, j, x, y, theta, w_R, w_L):
+    """The control instant of :func:`run_steps` at plant step ``k`` on a run record: the sensor, the outer loop
+    (3), inverse kinematics (4)-(5), the wheel controller (6), the driver's limit and PWM, the estimates and the
+    update law, the holds written back to the record."""
+    sen, act, m = world.sensor, world.actuator, world.control_steps
+    kc = k // m
+    x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
+                                 world.reference[k, 3], world.reference[k, 4])
+    e_x, e_y, e_th = pose_error(x, y, theta, x_r, y_r, th_r)
+    mw_R, mw_L, c_ex, c_ey, c_eth = w_R, w_L, e_x, e_y, e_th
+    if not sen.ideal:
+        row = j if sen.noisy else 0
+        mw_R, mw_L, mx, my, mth = sensor.measure(sen, run, x, y, theta, w_R, w_L, xs[r, row], plant.wheel_radius,
+                                                 plant.half_track)
+        c_ex, c_ey, c_eth = pose_error(mx, my, mth, x_r, y_r, th_r)
+    v_d, om_d = kanayama(world.gains, c_ex, c_ey, c_eth, v_r, om_r)
+    wd_R, wd_L = inverse(v_d, om_d, plant.wheel_radius, plant.half_track)
+    wdd_R = 0.0 if kc == 0 else (wd_R - run["w_d_prev"][0]) * (1.0 / world.control_dt)
+    wdd_L = 0.0 if kc == 0 else (wd_L - run["w_d_prev"][1]) * (1.0 / world.control_dt)
+    uc_R, uc_L = controller_command(params, st, kc, mw_R, mw_L, wd_R, wd_L, wdd_R, wdd_L)
+    us_R, sat_R = saturate(uc_R, plant.max_voltage)
+    us_L, sat_L = saturate(uc_L, plant.max_voltage)
+    if act.pwm:
+        us_R, us_L = actuator.pwm(us_R, act.pwm_step), actuator.pwm(us_L, act.pwm_step)
+    controller_estimates(params, st, mw_R, mw_L, us_R, us_L)
+    controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
+    if kc == 0:
+        actuator.start(act, run, us_R, us_L)
+    run["w_d_prev"][0], run["w_d_prev"][1] = wd_R, wd_L
+    run["w_d"][0], run["w_d"][1] = wd_R, wd_L
+    run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1] = uc_R, uc_L, us_R, us_L
+    run["saturated"][0], run["saturated"][1] = 1 if sat_R else 0, 1 if sat_L else 0

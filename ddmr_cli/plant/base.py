@@ -36,7 +36,13 @@ The contract, in the order the engine calls it per batch (arrays: one row per ru
 ``dt``
     The plant step [s] (``simulation.dt``).
 
-A second plant is one module implementing this protocol plus one ``conf/plant/<name>.yaml``; the engine, the
+The engine (:func:`ddmr_cli.engine.simulation.simulate`) drives it step by step: the compiled control half of
+every run (``external_control`` of the step loop), :meth:`step`, then the compiled accounting half on
+:meth:`state` and :meth:`true_disturbance` (``external_account``), and marks the runs :meth:`diverged` flags.
+
+A second plant is one module ``ddmr_cli.plant.<name>`` implementing this protocol with a ``factory(config)`` that
+returns a callable ``(simulation, threads) -> plant`` (:func:`ddmr_cli.plant.mujoco.factory`), plus one
+``conf/plant/<name>.yaml`` whose ``name`` is the module's; the engine, the
 metrics, the report and the determinism rules (same seed, same numbers, whatever the thread count) come with it.
 """
 

@@ -14,12 +14,13 @@ Needs the optional extra ``physics`` (``pip install -e ".[physics]"``).
 from __future__ import annotations
 
 import copy
+import functools
 import importlib.util
 import math
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from ddmr_cli.model.terrain import Terrain
 from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_robot, elevation_range, field_layout,
                                          heightfield, mjcf, normalised, rough_phases, substeps)
 
-__all__ = ["MujocoPlant", "import_mujoco", "validate", "EXTRA_HINT"]
+__all__ = ["MujocoPlant", "factory", "import_mujoco", "validate", "EXTRA_HINT"]
 
 #: the one line a missing extra prints
 EXTRA_HINT = 'needs MuJoCo, the optional extra: pip install -e ".[physics]"'
@@ -67,6 +68,18 @@ def validate(robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt
     return config
 
 
+def factory(config: Mapping) -> Callable[..., "MujocoPlant"]:
+    """The plant of a simulation for ``plant=mujoco`` (conf/plant/mujoco.yaml's values): a picklable callable
+    ``(sim, threads)`` that builds a :class:`MujocoPlant` from the simulation's robot, terrain, step and scenario
+    (:attr:`ddmr_cli.engine.simulation.Simulation.plant`); ``threads`` is the engine's (``run.threads``: 1 per job
+    in a sweep), used where ``plant.threads`` is 0. Parses the config; MuJoCo is imported when the plant is built."""
+    return functools.partial(_for_simulation, PhysicsConfig.from_mapping(config))
+
+
+def _for_simulation(config: PhysicsConfig, sim, threads: int = 0) -> "MujocoPlant":
+    return MujocoPlant(sim.robot, sim.terrain, config, float(sim.dt), sim.scenario, threads=threads)
+
+
 class MujocoPlant:
     """A batch of runs of the robot on its own seeded ground, stepped by the engine (the external plant contract).
 
@@ -84,6 +97,8 @@ class MujocoPlant:
     scenario : Scenario, optional
         Its phases that turn the roughness off (scenario 2's [5, 10) m) are flat ground (the zone's rolling
         friction kept); None: the zones' roughness everywhere.
+    threads : int
+        Worker threads stepping the runs when ``config.threads`` is 0 (0 here too: every core of this process).
 
     Attributes
     ----------
@@ -100,7 +115,7 @@ class MujocoPlant:
     """
 
     def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float,
-                 scenario: Scenario | None = None) -> None:
+                 scenario: Scenario | None = None, threads: int = 0) -> None:
         self._mj = mj = import_mujoco()
         config = validate(robot, terrain, config, dt, scenario=scenario)
         self._rough = rough_phases(scenario)
@@ -120,7 +135,7 @@ class MujocoPlant:
         self._spec = int(mj.mjtState.mjSTATE_QPOS | mj.mjtState.mjSTATE_QVEL)
         self._nq = m.nq
         self._nominal = NominalModel.from_robot(robot)
-        self._threads = config.threads or len(os.sched_getaffinity(0))
+        self._threads = config.threads or threads or len(os.sched_getaffinity(0))
         self._settle_steps = int(round(config.settle_time / config.timestep))
         self._airborne_steps = max(1, int(math.ceil(config.divergence.airborne_time / self.dt - 1e-9)))
         self._bad_qacc = int(mj.mjtWarning.mjWARN_BADQACC)
