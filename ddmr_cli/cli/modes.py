@@ -68,10 +68,12 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
     of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
     job's overrides."""
     from ddmr_cli.config import budget
-    from ddmr_cli.config.validate import check_additions, job_estimate, message, validate_config
+    from ddmr_cli.config.validate import (check_additions, job_estimate, message, steady_state_warning,
+                                          validate_config)
     from ddmr_cli.errors import ConfigError
 
     largest = None
+    warned: set[str] = set()
     for job in jobs:
         current = job["overrides"]
         try:
@@ -83,6 +85,10 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
         except (MemoryError, OverflowError) as exc:  # a value too large to validate
             raise UsageError(f"{' '.join(current)}: too large to plan ({type(exc).__name__}); lower the largest "
                              f"value") from None
+        warning = steady_state_warning(sim)
+        if warning is not None and warning not in warned:  # once per distinct message, not once per job
+            warned.add(warning)
+            print(f"ddmr: warning: {warning}", file=sys.stderr)
         est = job_estimate(cfg, sim)
         largest = est if largest is None or est.total > largest.total else largest
     if multirun and largest is not None:

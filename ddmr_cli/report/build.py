@@ -18,7 +18,7 @@ from ddmr_cli.report import verdicts as V
 from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten, load
-from ddmr_cli.report.figures import common_seed, make_figures
+from ddmr_cli.report.figures import common_seed, make_figures, shown_jobs
 from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
@@ -377,6 +377,14 @@ class Report:
                  f"ends with what the paper reports for the figure and what we see.", "")
         for scenario, figs in figures.items():
             self.add(f"### {scenario}", "")
+            jobs = [self.data.job(scenario, k) for k in self.data.keys(scenario)]
+            drawn = shown_jobs(jobs)
+            if len(drawn) < len(jobs):
+                where = ("the Realism section above draws every job against each effect" if realism.present(self.data)
+                         else "the first figure draws every job against the setting they differ in")
+                self.add(f"{len(jobs)} jobs on this scenario: the time-series figures draw one per controller ("
+                         + ", ".join(f"`{j.key}`" for j in drawn) + f"); {where}, and every job's numbers are in "
+                         f"{self.link(self.tables_dir / 'statistics.csv')}.", "")
             for f in figs:
                 rel = f.path.relative_to(self.out).as_posix()
                 self.add(f"**{f.title}.** {f.caption}", "", f"![{f.title}]({rel})", "")

@@ -64,13 +64,13 @@ class Job:
     def controller(self) -> str:
         return str(self.summary.get("controller"))
 
-    @property
+    @cached_property
     def trajectory(self) -> str:
         """The trajectory option the job's overrides chose (the default, line, when none did)."""
         chosen = [o.partition("=")[2] for o in self.overrides if _override_key(o) == "trajectory"]
         return chosen[-1] if chosen else PAPER_TRAJECTORY
 
-    @property
+    @cached_property
     def scenario(self) -> str:
         """The scenario's name, ``@<trajectory>`` appended on a reference other than the paper's line."""
         name = str(self.summary.get("scenario"))
@@ -94,8 +94,13 @@ class Job:
     def series_seeds(self) -> list[int]:
         return [int(s) for s in self.summary.get("series_seeds", [])]
 
+    @cached_property
+    def flat_config(self) -> dict[str, Any]:
+        """The config flattened to dotted keys (:func:`flatten`), once: a large report asks for settings often."""
+        return flatten(self.config)
+
     def setting(self, dotted: str, default=None):
-        return flatten(self.config).get(dotted, default)
+        return self.flat_config.get(dotted, default)
 
 
 def controller_rank(controller: str) -> tuple[float, str]:

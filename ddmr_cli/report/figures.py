@@ -1,8 +1,11 @@
 """Figures mirroring the paper's (Figs. 3-14) plus the NN's share and the voltage spectra, one PNG each, per
 scenario, from the jobs' kept time series (and their across-seed bands when the jobs wrote ``bands.npz``).
 
-Each figure uses one seed: the first kept seed common to every job of the scenario, so every controller faces
-the same terrain. With bands, a time-series figure shows per controller the mean over all seeds (line), the
+Each figure uses one seed: the first kept seed common to every job drawn, so every controller faces the same
+terrain. A scenario with more than :data:`MAX_JOBS` jobs (a sweep over some setting: realism levels, gains) draws
+one job per controller in its time-series figures (:func:`shown_jobs`: the job without a swept setting, else the
+ideal loop, else the first) and the sweep itself in a summary figure, one line per controller over the swept
+setting (:meth:`ScenarioFigures.fig_sweep`); every figure stays within :data:`MAX_INCHES` on each side. With bands, a time-series figure shows per controller the mean over all seeds (line), the
 5-95 % band (shaded) and that seed (thin line). Long lines are thinned to at most
 :data:`~ddmr_cli.plots.common.MAX_POINTS` points keeping each bin's minimum and maximum; zooms are drawn at full
 resolution. Lines that would overlap are drawn widest-spread first, or split into one panel per controller.
@@ -38,6 +41,12 @@ POSE_T_MIN = 2.0
 PART_COLORS = {"ndo": OKABE_ITO["orange"], "nn": OKABE_ITO["sky_blue"]}
 
 
+#: At most this many jobs of one scenario are drawn in its time-series figures (:func:`shown_jobs`).
+MAX_JOBS = 10
+#: No figure is larger than this on either side (inches; at DPI 110 about 2,900 px).
+MAX_INCHES = 26.0
+
+
 @dataclass
 class Figure:
     path: Path
@@ -47,13 +56,40 @@ class Figure:
 
 def _legend(ax, order: list[str] | None = None, **kw) -> None:
     """Legend outside the axes, on the right (the curves and the zone labels stay visible); entries in
-    ``order`` (labels) come first, in that order, whatever order the lines were drawn in."""
+    ``order`` (labels) come first, in that order, whatever order the lines were drawn in. Entries that would
+    not fit the figure's height in one column go into several (:func:`legend_columns`)."""
     handles, labels = ax.get_legend_handles_labels()
     if order:
         rank = {label: i for i, label in enumerate(order)}
         pairs = sorted(zip(handles, labels), key=lambda hl: rank.get(hl[1], len(rank)))
         handles, labels = [h for h, _ in pairs], [l for _, l in pairs]
+    kw.setdefault("ncol", legend_columns(len(labels), ax.figure.get_figheight()))
     ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, **kw)
+
+
+def legend_columns(entries: int, height_in: float, fontsize: float = 8.0) -> int:
+    """Columns a legend of ``entries`` needs to fit ``height_in`` inches (a row is about 1.9 font sizes)."""
+    rows = max(1, int(0.8 * height_in * 72 / (1.9 * fontsize)))
+    return max(1, math.ceil(entries / rows))
+
+
+def shown_jobs(jobs: list[Job], limit: int = MAX_JOBS) -> list[Job]:
+    """The jobs a scenario's time-series figures draw: all of them up to ``limit``, else one per controller
+    (:func:`ddmr_cli.report.realism.representative`, or the controller's first job), in the given order."""
+    if len(jobs) <= limit:
+        return list(jobs)
+    from ddmr_cli.report.realism import representative
+
+    out = []
+    for controller in dict.fromkeys(j.controller for j in jobs):
+        mine = [j for j in jobs if j.controller == controller]
+        out.append(representative(mine) or mine[0])
+    return out
+
+
+def _height(base: float, per_row: float, rows: int) -> float:
+    """A figure's height in inches for ``rows`` panels, at most :data:`MAX_INCHES` (the panels shrink)."""
+    return min(base + per_row * rows, MAX_INCHES)
 
 
 def _mm(x: float) -> str:
@@ -73,7 +109,8 @@ class ScenarioFigures:
 
     def __init__(self, data: ReportData, scenario: str, out_dir: Path, styles: StyleBook):
         self.data, self.scenario, self.out_dir, self.styles = data, scenario, Path(out_dir), styles
-        self.jobs = [data.job(scenario, k) for k in data.keys(scenario)]
+        self.all_jobs = [data.job(scenario, k) for k in data.keys(scenario)]
+        self.jobs = shown_jobs(self.all_jobs)
         self.seed = common_seed(self.jobs)
         self.series: dict[str, dict[str, np.ndarray]] = {}
         self.bands: dict[str, object] = {}
@@ -261,7 +298,7 @@ class ScenarioFigures:
         return [j.label for j in self.jobs]
 
     def _by_controller(self, controller: str) -> Job | None:
-        return next((j for j in self.jobs if j.controller == controller and j.variant == 0), None)
+        return next((j for j in self.jobs if j.controller == controller), None)
 
     # --- the figures -------------------------------------------------------------------------------------
     def fig_terrain(self, plt):
@@ -412,7 +449,7 @@ class ScenarioFigures:
                    f"(mrad): {_listing(sds)}.")
 
     def _panel_grid(self, plt, n_rows: int, ratios=(2.4, 1.0), row_height: float = 1.55):
-        fig, axes = plt.subplots(n_rows, 2, figsize=(12, 1.0 + row_height * n_rows), squeeze=False,
+        fig, axes = plt.subplots(n_rows, 2, figsize=(12, _height(1.0, row_height, n_rows)), squeeze=False,
                                  gridspec_kw={"width_ratios": list(ratios)}, sharex="col", sharey="col")
         return fig, axes
 
@@ -464,7 +501,7 @@ class ScenarioFigures:
         if not nnos:
             return
         t0, t1 = self._zoom_window()
-        fig, axes = plt.subplots(len(nnos), 3, figsize=(13, 1.2 + 2.0 * len(nnos)), squeeze=False, sharex="col",
+        fig, axes = plt.subplots(len(nnos), 3, figsize=(13, _height(1.2, 2.0, len(nnos))), squeeze=False, sharex="col",
                                  sharey="col", gridspec_kw={"width_ratios": [2.2, 1.0, 1.6]})
         shares = []
         for i, (row, job) in enumerate(zip(axes, nnos)):
@@ -553,7 +590,7 @@ class ScenarioFigures:
             return
         sigma = self.paper["figure9_smc_sigma"]
         show_paper = self.scenario == "paper_1" and any(j.controller == "smc" for j in jobs)
-        fig, axes = plt.subplots(len(jobs), 2, figsize=(12, 1.0 + 1.55 * len(jobs)), squeeze=False, sharex=True,
+        fig, axes = plt.subplots(len(jobs), 2, figsize=(12, _height(1.0, 1.55, len(jobs))), squeeze=False, sharex=True,
                                  sharey=True)
         for i, (row, job) in enumerate(zip(axes, jobs)):
             for ax, wheel in zip(row, ("right", "left")):
@@ -654,17 +691,77 @@ class ScenarioFigures:
                    f"hf_fraction metric. {self.paper_says('spectrum')} Ours — fraction of var(u) above {cutoff:g} Hz "
                    f"(hf_fraction, mean over seeds): {_listing(hf)}.")
 
+    def swept(self) -> dict[str, list[Job]]:
+        """Per controller with several jobs on this scenario (a sweep over some setting), its jobs; empty when
+        the realism section draws them (:mod:`ddmr_cli.report.realism`)."""
+        from ddmr_cli.report import realism
+
+        groups: dict[str, list[Job]] = {}
+        for job in self.all_jobs:
+            groups.setdefault(job.controller, []).append(job)
+        groups = {c: js for c, js in groups.items() if len(js) > 1}
+        if groups and realism.present(self.data):
+            return {}
+        return groups
+
+    def fig_sweep(self, plt):
+        """The sweep at a glance: per controller with several jobs, the deviation and chattering (steady state
+        when the jobs have it) against the setting its jobs differ in, mean and 5-95 % band over the seeds."""
+        groups = self.swept()
+        if not groups:
+            return
+        m = self.data.metrics
+        ok = m[m["status"] == "ok"]
+        metrics = [(c if f"{c}_ss" not in m.columns else f"{c}_ss", label) for c, label in
+                   (("deviation_mae", "deviation MAE [mm]"), ("chattering", "chattering [V/s]"))]
+        levels = list(dict.fromkeys(_setting(j) for js in groups.values() for j in js))
+        width = min(max(7.0, 0.45 * len(levels) + 4.5), MAX_INCHES)
+        fig, axes = plt.subplots(len(metrics), 1, figsize=(width, 6.5), sharex=True, squeeze=False)
+        xs = {level: i for i, level in enumerate(levels)}
+        for ax, (metric, ylabel) in zip(axes[:, 0], metrics):
+            scale = 1000.0 if metric.startswith("deviation") else 1.0
+            for controller, jobs in groups.items():
+                pts = []
+                for job in jobs:
+                    v = scale * ok.loc[ok["job"] == job.dir.name, metric].astype(float).to_numpy()
+                    v = v[np.isfinite(v)]
+                    if v.size:
+                        pts.append((xs[_setting(job)], v.mean(), np.percentile(v, 5), np.percentile(v, 95)))
+                if not pts:
+                    continue
+                x, mean, lo, hi = (np.array(c) for c in zip(*sorted(pts)))
+                style = self.styles[controller]
+                ax.plot(x, mean, color=style.color, ls=style.kwargs()["ls"], marker=style.marker or "o", ms=3.5,
+                        lw=1.2, label=jobs[0].display.label)
+                ax.fill_between(x, lo, hi, color=style.color, alpha=BAND_ALPHA, lw=0)
+            if np.all([v > 0 for line in ax.get_lines() for v in line.get_ydata()]) and ax.get_lines():
+                ax.set_yscale("log")
+            ax.set_ylabel(ylabel + (" (steady state)" if metric.endswith("_ss") else ""))
+            ax.grid(alpha=0.3, which="both")
+        bottom = axes[-1, 0]
+        bottom.set_xticks(range(len(levels)), [_short(level) for level in levels],
+                          rotation=30 if len(levels) > 5 else 0, ha="right" if len(levels) > 5 else "center",
+                          fontsize=7 if len(levels) > 12 else 8)
+        bottom.set_xlabel("swept setting (the overrides the jobs differ in)")
+        axes[0, 0].set_title(f"The sweep at a glance — {self.scenario}: mean and 5–95 % band over seeds")
+        _legend(axes[0, 0])
+        drawn = ", ".join(j.label for j in self.jobs)
+        self._save(fig, "sweep", "The sweep at a glance: one line per controller over the swept setting",
+                   f"{len(self.all_jobs)} jobs on this scenario; per controller, its jobs' deviation (mm) and "
+                   f"chattering (mean over seeds, 5–95 % band) against the setting they differ in. The time-series "
+                   f"figures below draw {len(self.jobs)} of them ({drawn})"
+                   + ("." if len(self.jobs) == len(self.all_jobs) else
+                      "; every job's numbers are in tables/statistics.csv."))
+
     def fig_spread(self, plt):
-        keys = self.data.keys(self.scenario)
         values, labels, colors = [], [], []
-        for key in keys:
-            job = self.data.job(self.scenario, key)
+        for job in self.jobs:
             frame = self.data.metrics[(self.data.metrics["job"] == job.dir.name)
                                       & (self.data.metrics["status"] == "ok")]
             values.append(frame["deviation_mae"].astype(float).dropna().to_numpy())
             labels.append(job.label)
             colors.append(self.style(job)["color"])
-        fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(keys) + 2), 4.2))
+        fig, ax = plt.subplots(figsize=(min(max(6, 1.6 * len(self.jobs) + 2), MAX_INCHES), 4.2))
         if any(v.size for v in values):
             box = ax.boxplot([v if v.size else [np.nan] for v in values], widths=0.5, showfliers=False,
                              patch_artist=True, medianprops={"color": "k"})
@@ -691,6 +788,15 @@ class ScenarioFigures:
                                                  if any(j.controller in names for j in self.jobs) else "."))
 
 
+def _setting(job: Job) -> str:
+    """What sets a job apart from its controller's other jobs: its distinguishing overrides' values."""
+    return ", ".join(o.partition("=")[2] or o for o in job.extra) or "(default)"
+
+
+def _short(text: str, width: int = 28) -> str:
+    return text if len(text) <= width else text[:width - 1] + "…"
+
+
 def common_seed(jobs: list[Job]) -> int | None:
     """The first kept seed common to every job (None when there is none)."""
     if not jobs or not all((j.dir / io.SERIES).is_file() for j in jobs):
@@ -702,7 +808,7 @@ def common_seed(jobs: list[Job]) -> int | None:
     return ordered[0] if ordered else None
 
 
-FIGURE_METHODS = ("fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
+FIGURE_METHODS = ("fig_sweep", "fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
                   "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread")
 
 
@@ -710,8 +816,8 @@ def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str
     """One figure task ``(scenario, method)``: its figures and notes."""
     scenario, method = task
     sf = ScenarioFigures(data, scenario, out_dir, styles)
-    if sf.seed is None and method != "fig_spread":
-        if method == FIGURE_METHODS[0]:
+    if sf.seed is None and method not in ("fig_spread", "fig_sweep"):
+        if method == "fig_terrain":
             sf.notes.append(f"{scenario}: no kept time-series seed common to every job (run.keep_series); "
                             f"time-series figures skipped")
         return [], sf.notes
