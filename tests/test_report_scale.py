@@ -217,3 +217,48 @@ def test_the_empty_steady_state_window_is_warned(capsys):
     _validate_jobs(jobs, base, True, ddmr_cli.compose_config)
     err = capsys.readouterr().err
     assert err.count("ddmr: warning: metrics.settle_time=3 s") == 1, err  # once for the sweep, not per job
+
+
+# --- what a large report draws first (issue 28) --------------------------------------------------------------
+
+def test_scenarios_off_the_paper_line_get_the_summary_figures_unless_all_are_asked_for(seeds, tmp_path):
+    from ddmr_cli.report.data import load
+    from ddmr_cli.report.figures import ACROSS, FIGURE_METHODS, SUMMARY_METHODS, figure_tasks
+
+    sweep = tmp_path / "sweep"
+    for controller in CONTROLLERS:
+        for scenario in SCENARIOS:
+            for trajectory in ("line", "circle"):
+                overrides = [f"controller={controller}", f"scenario={scenario}", f"trajectory={trajectory}"]
+                clone(_source(seeds, controller, scenario), sweep / ",".join(overrides), overrides, {}, 1.0)
+    data = load(sweep)
+    assert data.scenarios == ["paper_1", "paper_1@circle", "paper_2", "paper_2@circle"]
+    tasks = figure_tasks(data)
+    assert tasks[0] == (ACROSS, "fig_scenarios")  # the summary across scenarios first
+    assert [m for s, m in tasks if s == "paper_1"] == list(FIGURE_METHODS)
+    assert [m for s, m in tasks if s == "paper_1@circle"] == list(SUMMARY_METHODS)
+    assert len(tasks) == 1 + 2 * len(FIGURE_METHODS) + 2 * len(SUMMARY_METHODS)
+    every = figure_tasks(data, every=True)
+    assert [m for s, m in every if s == "paper_2@circle"] == list(FIGURE_METHODS)
+
+
+def test_table4_sized_reports_draw_every_figure_and_no_summary(seeds):
+    from ddmr_cli.report.data import load
+    from ddmr_cli.report.figures import FIGURE_METHODS, figure_tasks
+
+    tasks = figure_tasks(load(seeds))
+    assert tasks == [(s, m) for s in SCENARIOS for m in FIGURE_METHODS]
+
+
+def test_our_table4_beside_the_papers(seeds, tmp_path):
+    from ddmr_cli.plots.common import StyleBook
+    from ddmr_cli.report import tables as T
+    from ddmr_cli.report.data import load
+    from ddmr_cli.report.figures import fig_table4
+
+    data = load(seeds)
+    t4 = T.table4_frame(T.stats_frame(data))
+    figure = fig_table4(t4, tmp_path, StyleBook(CONTROLLERS, data.displays()), data.displays())
+    assert figure is not None and figure.path.read_bytes()[:4] == b"\x89PNG"
+    assert max(_png_size(figure.path)) <= MAX_PX
+    assert fig_table4(t4[t4["scenario"] != "paper_1"], tmp_path, StyleBook(CONTROLLERS), data.displays()) is None

@@ -12,13 +12,14 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def build_report(path, out=None, margin=None, figures: bool = True) -> Path:
+def build_report(path, out=None, margin=None, figures: bool = True, all_figures: bool = False) -> Path:
     """Build the report of a sweep dir or a run dir; returns the output dir.
 
     ``margin`` is the practical margin of the verdicts (a tie when the 95 % CI of a paired difference lies inside
     it): a :class:`~ddmr_cli.report.stats.Margin`, a length in metres (``1e-4``), or text (``"0.1mm"``, ``"5%"``);
     default 0.1 mm for the metrics in metres and 5 % of the reference's mean for the others. ``figures=False``
-    writes the markdown and every table without drawing a figure (seconds instead of tens of seconds).
+    writes the markdown and every table without drawing a figure (seconds instead of tens of seconds). A scenario
+    on a reference other than the paper's line gets its summary figures only, unless ``all_figures``.
 
     Raises
     ------
@@ -29,7 +30,7 @@ def build_report(path, out=None, margin=None, figures: bool = True) -> Path:
     """
     from ddmr_cli.report.build import build
 
-    return build(path, out, margin, figures)
+    return build(path, out, margin, figures, all_figures)
 
 
 __all__ = ["build_report"]

@@ -18,7 +18,7 @@ from ddmr_cli.report import verdicts as V
 from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten, load
-from ddmr_cli.report.figures import common_seed, make_figures, shown_jobs
+from ddmr_cli.report.figures import ACROSS, common_seed, detailed, fig_table4, shown_jobs, start_figures
 from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
@@ -57,10 +57,11 @@ class Report:
     moved into, the ``--out`` its markdown names (default ``out``)."""
 
     def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True,
-                 final: Path | None = None):
+                 final: Path | None = None, all_figures: bool = False):
         self.data, self.out, self.margin = data, out, margin or Margin()
         self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
+        self.all_figures = all_figures  # every figure of every scenario (figures.figure_tasks)
         self.styles = StyleBook((j.controller for j in data.jobs), data.displays())
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
@@ -214,6 +215,10 @@ class Report:
         self.add(T.md_table(["Paper row"] + [h for *_, h in T.TABLE4_COLUMNS],
                             [[name] + [T.fmt(v[c]) for _, _, c, _ in T.TABLE4_COLUMNS] for name, v in paper.items()]),
                  "")
+        figure = fig_table4(t4, self.figures_dir, self.styles, self.data.displays()) if self.draw_figures else None
+        if figure is not None:
+            self.add(f"**{figure.title}.** {figure.caption}", "",
+                     f"![{figure.title}]({figure.path.relative_to(self.out).as_posix()})", "")
 
     def verdicts(self) -> None:
         import pandas as pd
@@ -361,7 +366,7 @@ class Report:
             self.add("## Figures", "", "Not drawn (`ddmr report --no-figures`); the tables below hold every number.",
                      "")
             return
-        figures, notes = make_figures(self.data, self.figures_dir, self.styles)
+        figures, notes = self.pending_figures()
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
         shown = self.data.displays()
@@ -375,8 +380,18 @@ class Report:
                  f"time-series figures use the first kept seed common to all its jobs; where the jobs wrote "
                  f"bands.npz, the mean over all seeds and the 5–95 % band are drawn with that seed. Every caption "
                  f"ends with what the paper reports for the figure and what we see.", "")
+        brief = [s for s in self.data.scenarios if not self.all_figures and not detailed(self.data, s)]
+        if brief:
+            self.add(f"Scenarios on a reference other than the paper's line ({', '.join(f'`{s}`' for s in brief)}) "
+                     f"get the summary figures (trajectory, deviation, spread over seeds); `ddmr report "
+                     f"{shlex.quote(str(self.data.path))} --all-figures` draws all of theirs too.", "")
         for scenario, figs in figures.items():
-            self.add(f"### {scenario}", "")
+            self.add(f"### {scenario or 'All scenarios'}", "")
+            if scenario == ACROSS:
+                self.add(*(line for f in figs for line in (
+                    f"**{f.title}.** {f.caption}", "", f"![{f.title}]({f.path.relative_to(self.out).as_posix()})",
+                    "")))
+                continue
             jobs = [self.data.job(scenario, k) for k in self.data.keys(scenario)]
             drawn = shown_jobs(jobs)
             if len(drawn) < len(jobs):
@@ -399,6 +414,9 @@ class Report:
         self.add("", "Units of every metric: " + "; ".join(f"{m} [{u}]" for m, (u, _) in METRICS.items()) + ".", "")
 
     def build(self) -> Path:
+        # the figures are drawn in forked processes while the tables below are computed (issue 28)
+        self.pending_figures = (start_figures(self.data, self.figures_dir, self.styles, every=self.all_figures)
+                                if self.draw_figures else None)
         stats = T.stats_frame(self.data)
         self.header()
         self.configuration()
@@ -418,12 +436,14 @@ class Report:
         return self.out
 
 
-def build(path, out=None, margin=None, figures: bool = True) -> Path:
-    """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`)."""
+def build(path, out=None, margin=None, figures: bool = True, all_figures: bool = False) -> Path:
+    """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`);
+    ``all_figures``: every figure of every scenario (:func:`ddmr_cli.report.figures.figure_tasks`)."""
     margin = Margin.parse(margin)
     data = load(path)
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return staged(out_dir, lambda root: Report(data, root, margin, figures, final=out_dir).build())
+    return staged(out_dir, lambda root: Report(data, root, margin, figures, final=out_dir,
+                                                    all_figures=all_figures).build())
 
 
 # --- one report per output dir, moved in whole ---------------------------------------------------------------

@@ -140,7 +140,9 @@ class ScenarioFigures:
         return self.series[job.key]
 
     def style(self, job: Job) -> dict:
-        return self.styles[job.controller].kwargs(job.variant)
+        """The job's line style: its controller's, with a variant's marker only when its variants are drawn
+        together (one job per controller drawn: no marker)."""
+        return self.styles[job.controller].kwargs(job.variant if len(self.jobs) == len(self.all_jobs) else 0)
 
     def paper_says(self, figure: str) -> str:
         text = (self.paper.get("figures", {}).get(figure) or {}).get(self.scenario)
@@ -714,19 +716,16 @@ class ScenarioFigures:
         ok = m[m["status"] == "ok"]
         metrics = [(c if f"{c}_ss" not in m.columns else f"{c}_ss", label) for c, label in
                    (("deviation_mae", "deviation MAE [mm]"), ("chattering", "chattering [V/s]"))]
-        levels = list(dict.fromkeys(_setting(j) for js in groups.values() for j in js))
+        levels = sorted(dict.fromkeys(_setting(j) for js in groups.values() for j in js), key=_level_order)
+        keys = list(dict.fromkeys(o.partition("=")[0].lstrip("+~") for js in groups.values() for j in js
+                                  for o in j.extra))
         width = min(max(7.0, 0.45 * len(levels) + 4.5), MAX_INCHES)
         fig, axes = plt.subplots(len(metrics), 1, figsize=(width, 6.5), sharex=True, squeeze=False)
         xs = {level: i for i, level in enumerate(levels)}
         for ax, (metric, ylabel) in zip(axes[:, 0], metrics):
             scale = 1000.0 if metric.startswith("deviation") else 1.0
             for controller, jobs in groups.items():
-                pts = []
-                for job in jobs:
-                    v = scale * ok.loc[ok["job"] == job.dir.name, metric].astype(float).to_numpy()
-                    v = v[np.isfinite(v)]
-                    if v.size:
-                        pts.append((xs[_setting(job)], v.mean(), np.percentile(v, 5), np.percentile(v, 95)))
+                pts = [(xs[_setting(job)], *b) for job in jobs if (b := _band(ok, job, metric, scale))]
                 if not pts:
                     continue
                 x, mean, lo, hi = (np.array(c) for c in zip(*sorted(pts)))
@@ -742,7 +741,7 @@ class ScenarioFigures:
         bottom.set_xticks(range(len(levels)), [_short(level) for level in levels],
                           rotation=30 if len(levels) > 5 else 0, ha="right" if len(levels) > 5 else "center",
                           fontsize=7 if len(levels) > 12 else 8)
-        bottom.set_xlabel("swept setting (the overrides the jobs differ in)")
+        bottom.set_xlabel(", ".join(keys) or "swept setting")
         axes[0, 0].set_title(f"The sweep at a glance — {self.scenario}: mean and 5–95 % band over seeds")
         _legend(axes[0, 0])
         drawn = ", ".join(j.label for j in self.jobs)
@@ -788,9 +787,25 @@ class ScenarioFigures:
                                                  if any(j.controller in names for j in self.jobs) else "."))
 
 
+def _band(ok, job: Job, metric: str, scale: float = 1.0) -> tuple[float, float, float] | None:
+    """Mean, 5th and 95th percentile over the job's seeds of ``metric`` (times ``scale``) in the metrics rows
+    ``ok``; None when it has no finite value."""
+    v = scale * ok.loc[ok["job"] == job.dir.name, metric].astype(float).to_numpy()
+    v = v[np.isfinite(v)]
+    return (float(v.mean()), float(np.percentile(v, 5)), float(np.percentile(v, 95))) if v.size else None
+
+
 def _setting(job: Job) -> str:
     """What sets a job apart from its controller's other jobs: its distinguishing overrides' values."""
     return ", ".join(o.partition("=")[2] or o for o in job.extra) or "(default)"
+
+
+def _level_order(level: str) -> tuple:
+    """Sort key of a swept setting's text: numerically when it is one number, else as text, numbers first."""
+    try:
+        return (0, float(level), "")
+    except ValueError:
+        return (1, 0.0, level)
 
 
 def _short(text: str, width: int = 28) -> str:
@@ -812,9 +827,117 @@ FIGURE_METHODS = ("fig_sweep", "fig_terrain", "fig_trajectory", "fig_deviation",
                   "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread")
 
 
+def fig_table4(t4, out_dir: Path, styles: StyleBook, displays: dict) -> Figure | None:
+    """Our Table 4 beside the paper's: per column (deviation mean with its SD over seeds, e_x, e_y, e_θ MAE) and
+    per row compared with the paper (scenario 1), our bar in the controller's colour and the paper's hatched grey,
+    linear from 0, millimetres (mrad); ``t4`` is :func:`ddmr_cli.report.tables.table4_frame`. None without such rows."""
+    from ddmr_cli.paper import TABLE4_COLUMNS
+
+    rows = t4[t4["paper_row"].astype(str) != ""]
+    if rows.empty:
+        return None
+    plt = pyplot()
+    columns = [c for c in TABLE4_COLUMNS if c[1] == "mean"]
+    fig, axes = plt.subplots(1, len(columns), figsize=(min(3.2 * len(columns) + 1.0, MAX_INCHES), 3.8))
+    x = np.arange(len(rows))
+    for ax, (metric, _, col, header) in zip(axes, columns):
+        ours, theirs = 1000 * rows[col].astype(float).to_numpy(), 1000 * rows[f"paper_{col}"].astype(float).to_numpy()
+        err = 1000 * rows["deviation_sd"].astype(float).to_numpy() if col == "deviation_mean" else None
+        perr = 1000 * rows["paper_deviation_sd"].astype(float).to_numpy() if col == "deviation_mean" else None
+        colors = [styles[c].color for c in rows["controller"]]
+        ax.bar(x - 0.2, ours, 0.4, yerr=err, color=colors, edgecolor="k", lw=0.5, capsize=2, label="ours")
+        ax.bar(x + 0.2, theirs, 0.4, yerr=perr, color="0.85", edgecolor="0.4", hatch="///", lw=0.5, capsize=2,
+               label="paper")
+        ax.set_ylim(bottom=0)  # linear from 0: a bar's length is its value
+        unit = "mrad" if "theta" in metric else "mm"
+        ax.set_title(header.split(" (")[0] + f" [{unit}]", fontsize=9)
+        ax.set_xticks(x, [_short(displays[c].label, 14) for c in rows["controller"]], rotation=30, ha="right",
+                      fontsize=8)
+        ax.grid(alpha=0.3, axis="y", which="both")
+    axes[0].legend(loc="upper right", fontsize=7)
+    fig.suptitle("Table 4, scenario 1: ours (colour, SD over seeds as error bar) beside the paper's (hatched)",
+                 fontsize=10)
+    path = save(fig, Path(out_dir) / "table4_vs_paper.png")
+    return Figure(path, "Our Table 4 beside the paper's", "Scenario 1 (the paper's Table 4 does not say which "
+                  "scenario it reports), whole-run MAE; our bar in each controller's colour, the "
+                  "paper's hatched grey; on the deviation, the SD over seeds as an error bar. The paper prints e_θ "
+                  "in m; it is rad (here mrad).")
+
+
+#: The figures every scenario gets. A scenario on the paper's reference (its line: the figures the paper draws)
+#: gets every one of :data:`FIGURE_METHODS`; one on another reference (``paper_1@circle``) only these, unless
+#: every figure is asked for (``ddmr report --all-figures``): a large sweep's report draws what is read first.
+SUMMARY_METHODS = ("fig_sweep", "fig_trajectory", "fig_deviation", "fig_spread")
+#: The task of the figure across all scenarios (:func:`fig_scenarios`); its figures are listed under this key.
+ACROSS = ""
+
+
+def detailed(data: ReportData, scenario: str) -> bool:
+    """Whether ``scenario`` gets every figure by default: its jobs track the paper's reference."""
+    from ddmr_cli.report.data import PAPER_TRAJECTORY
+
+    return any(j.trajectory == PAPER_TRAJECTORY for j in data.jobs if j.scenario == scenario)
+
+
+def figure_tasks(data: ReportData, every: bool = False) -> list[tuple[str, str]]:
+    """The figure tasks ``(scenario, method)`` of a report, the summaries first: the figure across scenarios when
+    there are more than two, then per scenario its figures (every one with ``every``, else as
+    :data:`SUMMARY_METHODS` says)."""
+    tasks = [(ACROSS, "fig_scenarios")] if len(data.scenarios) > 2 else []
+    for scenario in data.scenarios:
+        methods = FIGURE_METHODS if every or detailed(data, scenario) else SUMMARY_METHODS
+        tasks += [(scenario, m) for m in FIGURE_METHODS if m in methods]
+    return tasks
+
+
+def fig_scenarios(data: ReportData, out_dir: Path, styles: StyleBook, plt) -> list[Figure]:
+    """Every scenario at a glance: per controller (one job per scenario, :func:`shown_jobs`) its deviation and
+    chattering (steady state when the jobs have it), mean and 5-95 % band over the seeds, one line per
+    controller over the scenarios."""
+    m = data.metrics
+    ok = m[m["status"] == "ok"]
+    metrics = [(c if f"{c}_ss" not in m.columns else f"{c}_ss", label) for c, label in
+               (("deviation_mae", "deviation MAE [mm]"), ("chattering", "chattering [V/s]"))]
+    scenarios = data.scenarios
+    shown = {s: shown_jobs([data.job(s, k) for k in data.keys(s)]) for s in scenarios}
+    controllers = list(dict.fromkeys(j.controller for s in scenarios for j in shown[s]))
+    width = min(max(8.0, 0.9 * len(scenarios) + 4.5), MAX_INCHES)
+    fig, axes = plt.subplots(len(metrics), 1, figsize=(width, 6.5), sharex=True, squeeze=False)
+    for ax, (metric, ylabel) in zip(axes[:, 0], metrics):
+        scale = 1000.0 if metric.startswith("deviation") else 1.0
+        for controller in controllers:
+            pts = []
+            for i, scenario in enumerate(scenarios):
+                job = next((j for j in shown[scenario] if j.controller == controller), None)
+                if job is not None and (b := _band(ok, job, metric, scale)):
+                    pts.append((i, *b))
+            if not pts:
+                continue
+            x, mean, lo, hi = (np.array(c) for c in zip(*pts))
+            style = styles[controller]
+            ax.plot(x, mean, color=style.color, ls=style.kwargs()["ls"], marker=style.marker or "o", ms=3.5, lw=1.2,
+                    label=data.displays()[controller].label)
+            ax.fill_between(x, lo, hi, color=style.color, alpha=BAND_ALPHA, lw=0)
+        if ax.get_lines() and all((line.get_ydata() > 0).all() for line in ax.get_lines()):
+            ax.set_yscale("log")
+        ax.set_ylabel(ylabel + (" (steady state)" if metric.endswith("_ss") else ""))
+        ax.grid(alpha=0.3, which="both")
+    axes[-1, 0].set_xticks(range(len(scenarios)), [_short(s) for s in scenarios], rotation=20, ha="right")
+    axes[-1, 0].set_xlabel("scenario (@ the reference when not the paper's line)")
+    axes[0, 0].set_title("Every scenario at a glance: mean and 5–95 % band over seeds")
+    _legend(axes[0, 0])
+    path = save(fig, Path(out_dir) / "scenarios.png")
+    return [Figure(path, "Every scenario at a glance: one line per controller over the scenarios",
+                   f"{len(scenarios)} scenarios; per controller its deviation (mm) and chattering, mean over seeds "
+                   f"and 5–95 % band (one job per controller and scenario; every number in Table 4 and "
+                   f"tables/statistics.csv).")]
+
+
 def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str, str]):
     """One figure task ``(scenario, method)``: its figures and notes."""
     scenario, method = task
+    if scenario == ACROSS:
+        return fig_scenarios(data, out_dir, styles, pyplot()), []
     sf = ScenarioFigures(data, scenario, out_dir, styles)
     if sf.seed is None and method not in ("fig_spread", "fig_sweep"):
         if method == "fig_terrain":
@@ -849,9 +972,9 @@ def workers(n_tasks: int) -> int:
     return max(1, min(n, n_tasks))
 
 
-def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
+def _start_forked(data, out_dir, styles, tasks, n: int):
+    """``n`` forked figure processes, given every task; :func:`_collect` gathers their results."""
     import multiprocessing
-    import queue
 
     ctx = multiprocessing.get_context("fork")
     task_q, result_q = ctx.Queue(), ctx.Queue()
@@ -863,6 +986,17 @@ def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
         task_q.put(item)
     for _ in procs:
         task_q.put(None)
+    return procs, result_q, tasks
+
+
+def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
+    return _collect(*_start_forked(data, out_dir, styles, tasks, n))
+
+
+def _collect(procs, result_q, tasks) -> list:
+    """The results of the figure processes, in task order (a task's failure raised here); the processes ended."""
+    import queue
+
     results: list = [None] * len(tasks)
     pending = len(tasks)
     try:
@@ -899,21 +1033,32 @@ def _warm_up() -> None:
     plt.close(fig)
 
 
-def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None
+def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False
                  ) -> tuple[dict[str, list[Figure]], list[str]]:
-    """All figures, per scenario (in forked processes when the machine has several cores); returns them and
-    notes on what was skipped."""
+    """The report's figures (:func:`figure_tasks`; every one with ``every``), per scenario (the figure across
+    scenarios under :data:`ACROSS`, first), drawn in forked processes when the machine has several cores;
+    returns them and notes on what was skipped."""
+    return start_figures(data, out_dir, styles, every)()
+
+
+def start_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False):
+    """Start drawing :func:`make_figures`' figures in forked processes (the caller goes on with its tables
+    meanwhile); returns the function that waits for them and returns what :func:`make_figures` returns. With one
+    process the figures are drawn when that function is called."""
     styles = styles or StyleBook((j.controller for j in data.jobs), data.displays())
-    tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
+    tasks = figure_tasks(data, every)
     for scenario in data.scenarios:  # read the series (and bands) once, before any fork
         ScenarioFigures(data, scenario, out_dir, styles)
     n = workers(len(tasks))
     if n > 1:
         _warm_up()
-        results = _run_forked(data, Path(out_dir), styles, tasks, n)
-    else:
-        results = [make_one(data, Path(out_dir), styles, task) for task in tasks]
-    figures: dict[str, list[Figure]] = {s: [] for s in data.scenarios}
+        started = _start_forked(data, Path(out_dir), styles, tasks, n)
+        return lambda: _gather(data, tasks, _collect(*started))
+    return lambda: _gather(data, tasks, [make_one(data, Path(out_dir), styles, task) for task in tasks])
+
+
+def _gather(data: ReportData, tasks, results) -> tuple[dict[str, list[Figure]], list[str]]:
+    figures: dict[str, list[Figure]] = {s: [] for s in dict.fromkeys(s for s, _ in tasks)}
     notes: list[str] = []
     for (scenario, _), (figs, task_notes) in zip(tasks, results):
         figures[scenario] += figs
