@@ -152,6 +152,7 @@ def test_a_150_job_realism_report_has_bounded_figures_with_legends_inside(realis
     assert "`smc_ndo_nno[+realism=ideal]`" in md
 
 
+@pytest.mark.slow
 def test_a_72_job_gain_sweep_gets_a_summary_figure(gain_sweep, monkeypatch):
     out, outside = render(gain_sweep, monkeypatch)
     sizes = {p.name: _png_size(p) for p in (out / "figures").glob("*.png")}
@@ -223,7 +224,7 @@ def test_the_empty_steady_state_window_is_warned(capsys):
 
 def test_scenarios_off_the_paper_line_get_the_summary_figures_unless_all_are_asked_for(seeds, tmp_path):
     from ddmr_cli.report.data import load
-    from ddmr_cli.report.figures import ACROSS, FIGURE_METHODS, SUMMARY_METHODS, figure_tasks
+    from ddmr_cli.report.figures import ACROSS, FIGURE_METHODS, ON_DEMAND, SUMMARY_METHODS, figure_tasks
 
     sweep = tmp_path / "sweep"
     for controller in CONTROLLERS:
@@ -235,19 +236,20 @@ def test_scenarios_off_the_paper_line_get_the_summary_figures_unless_all_are_ask
     assert data.scenarios == ["paper_1", "paper_1@circle", "paper_2", "paper_2@circle"]
     tasks = figure_tasks(data)
     assert tasks[0] == (ACROSS, "fig_scenarios")  # the summary across scenarios first
-    assert [m for s, m in tasks if s == "paper_1"] == list(FIGURE_METHODS)
+    default = [m for m in FIGURE_METHODS if m not in ON_DEMAND]
+    assert [m for s, m in tasks if s == "paper_1"] == default
     assert [m for s, m in tasks if s == "paper_1@circle"] == list(SUMMARY_METHODS)
-    assert len(tasks) == 1 + 2 * len(FIGURE_METHODS) + 2 * len(SUMMARY_METHODS)
+    assert len(tasks) == 1 + 2 * len(default) + 2 * len(SUMMARY_METHODS)
     every = figure_tasks(data, every=True)
     assert [m for s, m in every if s == "paper_2@circle"] == list(FIGURE_METHODS)
 
 
 def test_table4_sized_reports_draw_every_figure_and_no_summary(seeds):
     from ddmr_cli.report.data import load
-    from ddmr_cli.report.figures import FIGURE_METHODS, figure_tasks
+    from ddmr_cli.report.figures import FIGURE_METHODS, ON_DEMAND, figure_tasks
 
     tasks = figure_tasks(load(seeds))
-    assert tasks == [(s, m) for s in SCENARIOS for m in FIGURE_METHODS]
+    assert tasks == [(s, m) for s in SCENARIOS for m in FIGURE_METHODS if m not in ON_DEMAND]
 
 
 def test_our_table4_beside_the_papers(seeds, tmp_path):
@@ -262,3 +264,19 @@ def test_our_table4_beside_the_papers(seeds, tmp_path):
     assert figure is not None and figure.path.read_bytes()[:4] == b"\x89PNG"
     assert max(_png_size(figure.path)) <= MAX_PX
     assert fig_table4(t4[t4["scenario"] != "paper_1"], tmp_path, StyleBook(CONTROLLERS), data.displays()) is None
+
+
+@pytest.mark.slow
+def test_all_figures_draw_every_job_of_a_sweep_in_bounded_small_multiples(realism_sweep, tmp_path, monkeypatch):
+    from ddmr_cli.report.figures import MULTIPLES
+
+    monkeypatch.setattr("ddmr_cli.report.realism.cost_rows", lambda controllers: [])
+    monkeypatch.setenv("DDMR_REPORT_WORKERS", "1")
+    from ddmr_cli.report import build_report
+
+    out = build_report(realism_sweep, tmp_path / "report", all_figures=True)
+    pages = sorted((out / "figures").glob("paper_1_multiples_*.png"))
+    assert [p.name for p in pages] == [f"paper_1_multiples_{c}_{i}.png" for c in sorted(CONTROLLERS)
+                                       for i in (1, 2)]  # 25 jobs each: pages of 24 and 1
+    assert MULTIPLES == 24
+    assert all(max(_png_size(p)) <= MAX_PX for p in pages)

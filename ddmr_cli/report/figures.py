@@ -43,6 +43,8 @@ PART_COLORS = {"ndo": OKABE_ITO["orange"], "nn": OKABE_ITO["sky_blue"]}
 
 #: At most this many jobs of one scenario are drawn in its time-series figures (:func:`shown_jobs`).
 MAX_JOBS = 10
+#: Panels per page of the small multiples of a sweep's jobs (:meth:`ScenarioFigures.fig_multiples`).
+MULTIPLES = 24
 #: No figure is larger than this on either side (inches; at DPI 110 about 2,900 px).
 MAX_INCHES = 26.0
 
@@ -752,6 +754,44 @@ class ScenarioFigures:
                    + ("." if len(self.jobs) == len(self.all_jobs) else
                       "; every job's numbers are in tables/statistics.csv."))
 
+    def fig_multiples(self, plt):
+        """Every job of a scenario with more than the figures draw (a sweep), in small multiples: per controller,
+        pages of at most :data:`MULTIPLES` panels, each the deviation of the job's first kept seed against time
+        (log scale, shared), titled by its setting (``ddmr report --all-figures``)."""
+        if len(self.jobs) == len(self.all_jobs):
+            return
+        for controller in dict.fromkeys(j.controller for j in self.all_jobs):
+            jobs = sorted((j for j in self.all_jobs if j.controller == controller), key=_sweep_order)
+            for page in range(0, len(jobs), MULTIPLES):
+                chunk = jobs[page:page + MULTIPLES]
+                rows = math.ceil(len(chunk) / 4)
+                fig, axes = plt.subplots(rows, 4, figsize=(12, 0.8 + 1.7 * rows), sharex=True, sharey=True,
+                                         squeeze=False)
+                for ax, job in zip(axes.flat, chunk):
+                    seeds = job.series_seeds
+                    if not seeds or not (job.dir / io.SERIES).is_file():
+                        ax.text(0.5, 0.5, "no kept series", transform=ax.transAxes, ha="center", fontsize=7)
+                    else:  # two channels of one seed, not cached: a large sweep's series would not fit in memory
+                        s = io.read_series(job.dir / io.SERIES, ("t", "deviation"))[seeds[0]]
+                        idx = thin(s["deviation"], 1500)
+                        ax.plot(s["t"][idx], 1000 * s["deviation"][idx], **{**self.style(job), "marker": None})
+                        if (s["deviation"] > 0).any():
+                            ax.set_yscale("log")
+                    ax.set_title(_short(_setting(job), 34), fontsize=8)
+                    ax.grid(alpha=0.3, which="both")
+                for ax in list(axes.flat)[len(chunk):]:
+                    ax.axis("off")
+                for ax in axes[:, 0]:
+                    ax.set_ylabel("deviation [mm]", fontsize=8)
+                label = chunk[0].display.label
+                part = f" ({page // MULTIPLES + 1} of {math.ceil(len(jobs) / MULTIPLES)})" if len(jobs) > MULTIPLES else ""
+                fig.suptitle(f"{label}: every job of the sweep — {self.scenario}, its first kept seed{part}",
+                             fontsize=10)
+                self._save(fig, f"multiples_{safe_name(controller)}_{page // MULTIPLES + 1}",
+                           f"Every {label} job, one panel each{part}",
+                           f"Deviation from the reference (mm, log scale, shared axes) of each {label} job's first "
+                           f"kept seed, titled by the setting the job differs in.")
+
     def fig_spread(self, plt):
         values, labels, colors = [], [], []
         for job in self.jobs:
@@ -800,6 +840,20 @@ def _setting(job: Job) -> str:
     return ", ".join(o.partition("=")[2] or o for o in job.extra) or "(default)"
 
 
+def _sweep_order(job: Job) -> tuple:
+    """Sort key of a sweep's jobs: on a realism axis (ideal first, then each effect from mild to harsh), else by
+    :func:`_level_order` of the setting."""
+    from ddmr_cli.report.realism import EFFECTS, classify
+
+    place = classify(job)
+    effects = ["ideal", *EFFECTS, "combined"]
+    if place.effect in effects and (place.effect != "ideal" or not job.extra or "ideal" in _setting(job)):
+        worse_up = EFFECTS.get(place.effect, ("", "", True))[2]
+        level = place.level if math.isfinite(place.level) else 0.0
+        return (0, effects.index(place.effect), level if worse_up else -level, _setting(job))
+    return (1, 0, 0.0, "", *_level_order(_setting(job)))
+
+
 def _level_order(level: str) -> tuple:
     """Sort key of a swept setting's text: numerically when it is one number, else as text, numbers first."""
     try:
@@ -824,7 +878,10 @@ def common_seed(jobs: list[Job]) -> int | None:
 
 
 FIGURE_METHODS = ("fig_sweep", "fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
-                  "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread")
+                  "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread",
+                  "fig_multiples")
+#: Figures drawn only when every figure is asked for (``ddmr report --all-figures``): a sweep's jobs one by one.
+ON_DEMAND = ("fig_multiples",)
 
 
 def fig_table4(t4, out_dir: Path, styles: StyleBook, displays: dict) -> Figure | None:
@@ -886,7 +943,7 @@ def figure_tasks(data: ReportData, every: bool = False) -> list[tuple[str, str]]
     tasks = [(ACROSS, "fig_scenarios")] if len(data.scenarios) > 2 else []
     for scenario in data.scenarios:
         methods = FIGURE_METHODS if every or detailed(data, scenario) else SUMMARY_METHODS
-        tasks += [(scenario, m) for m in FIGURE_METHODS if m in methods]
+        tasks += [(scenario, m) for m in FIGURE_METHODS if m in methods and (every or m not in ON_DEMAND)]
     return tasks
 
 
@@ -939,7 +996,7 @@ def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str
     if scenario == ACROSS:
         return fig_scenarios(data, out_dir, styles, pyplot()), []
     sf = ScenarioFigures(data, scenario, out_dir, styles)
-    if sf.seed is None and method not in ("fig_spread", "fig_sweep"):
+    if sf.seed is None and method not in ("fig_spread", "fig_sweep", "fig_multiples"):
         if method == "fig_terrain":
             sf.notes.append(f"{scenario}: no kept time-series seed common to every job (run.keep_series); "
                             f"time-series figures skipped")
