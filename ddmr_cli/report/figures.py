@@ -235,10 +235,12 @@ class ScenarioFigures:
 
     def _decorate_time(self, ax, labels: bool = False):
         """Shade every other phase (or terrain zone) on a time axis and name them at the top."""
-        for i, (a, b, name) in enumerate(self._spans()):
+        spans = self._spans()
+        total = (spans[-1][1] - spans[0][0]) if spans else 0.0
+        for i, (a, b, name) in enumerate(spans):
             if i % 2:
                 ax.axvspan(a, b, color="0.92", zorder=0)
-            if labels:
+            if labels and b - a >= 0.05 * total:  # a span too narrow for its name (a short run) stays unnamed
                 ax.text((a + b) / 2, 0.98, name.replace("_", " "), transform=ax.get_xaxis_transform(),
                         ha="center", va="top", fontsize=8, color="0.35")
 
@@ -809,7 +811,8 @@ class ScenarioFigures:
             rng = np.random.default_rng(0)
             for i, (v, c) in enumerate(zip(values, colors), start=1):
                 ax.scatter(i + rng.uniform(-0.15, 0.15, v.size), v, s=10, color=c, alpha=0.8, zorder=3)
-        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=15 if len(labels) > 4 else 0)
+        crowded = len(labels) > 4 or sum(map(len, labels)) > 60  # long labels (a sweep's settings) overlap
+        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=15 if crowded else 0, ha="right" if crowded else "center")
         ax.set_yscale("log")
         ax.set(ylabel="deviation MAE per seed [m] (log scale)",
                title=f"Spread of the deviation MAE over seeds — {self.scenario}")
