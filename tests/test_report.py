@@ -323,9 +323,10 @@ def test_partial_sweep(mini_sweep, tmp_path):
     v = _read(out / "tables" / "verdicts.csv")
     assert not ((v["scenario"] == "paper_2") & (v["reference"] == "smc_ndo")).any()
     assert ((v["scenario"] == "paper_1") & (v["claim"] == "vs_smc_ndo")).any()
-    # no time series common to every job: only the spread plots, with a note
+    # no time series common to every job: only the figures of the metrics (spread, Table 4 beside the paper's)
     assert sorted(p.name for p in (out / "figures").glob("*.png")) == ["paper_1_deviation_spread.png",
-                                                                       "paper_2_deviation_spread.png"]
+                                                                       "paper_2_deviation_spread.png",
+                                                                       "table4_vs_paper.png"]
     assert "time-series figures skipped" in md
     _links_resolve(out, md)
     assert not (sweep / "report").exists()  # --out elsewhere: nothing written into the sweep

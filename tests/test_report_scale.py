@@ -201,7 +201,7 @@ def test_a_report_of_runs_shorter_than_the_settle_time(short_sweep, tmp_path, fi
     assert ("realism_paper_1.png" in md) is figures
 
 
-def test_the_empty_steady_state_window_is_warned(capsys):
+def test_the_empty_steady_state_window_is_warned(tmp_path):
     import ddmr_cli
     from ddmr_cli.cli.modes import _validate_jobs
     from ddmr_cli.config.validate import steady_state_warning, validate_config
@@ -215,9 +215,8 @@ def test_the_empty_steady_state_window_is_warned(capsys):
     jobs = [{"dir": c, "overrides": [f"controller={c}", "simulation.duration=2"]} for c in ("pid", "smc")]
     base = OmegaConf.merge(OmegaConf.create({"hydra": {"launcher": {"_target_": "basic", "n_jobs": 1}}}),
                            ddmr_cli.compose_config(jobs[0]["overrides"]))  # as Hydra composes it: with its node
-    _validate_jobs(jobs, base, True, ddmr_cli.compose_config)
-    err = capsys.readouterr().err
-    assert err.count("ddmr: warning: metrics.settle_time=3 s") == 1, err  # once for the sweep, not per job
+    warnings = _validate_jobs(jobs, base, True, ddmr_cli.compose_config)
+    assert len(warnings) == 1 and warnings[0].startswith("metrics.settle_time=3 s")  # once, not per job
 
 
 # --- what a large report draws first (issue 28) --------------------------------------------------------------
@@ -280,3 +279,13 @@ def test_all_figures_draw_every_job_of_a_sweep_in_bounded_small_multiples(realis
                                        for i in (1, 2)]  # 25 jobs each: pages of 24 and 1
     assert MULTIPLES == 24
     assert all(max(_png_size(p)) <= MAX_PX for p in pages)
+
+
+@pytest.mark.slow
+def test_ddmr_run_says_the_steady_state_window_is_empty(tmp_path):
+    from conftest import run_ddmr
+
+    proc = run_ddmr(["run", "controller=pid", "simulation.duration=0.5", "run.n_runs=2", "run.plots=false",
+                     f"hydra.run.dir={tmp_path / 'r'}"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr.count("ddmr: warning: metrics.settle_time=3 s is not below simulation.duration=0.5 s") == 1

@@ -55,8 +55,13 @@ class Mode:
     def preflight(self, out_dir: Path, jobs: Sequence[dict]) -> None:
         """Refuse (``FaultError``) an output dir where this launch would overwrite what ddmr did not write."""
 
+    #: one-line warnings from planning (:func:`_validate_jobs`), printed once the launch is not refused
+    warnings: tuple[str, ...] = ()
+
     def before_launch(self, out_dir: Path, jobs: Sequence[dict]) -> None:
-        """Under the output dir's lock, just before Hydra starts."""
+        """Under the output dir's lock, just before Hydra starts: the planning's warnings."""
+        for warning in self.warnings:
+            print(f"ddmr: warning: {warning}", file=sys.stderr)
 
     def finish(self, out_dir: Path, jobs: Sequence[dict]) -> int:
         """The exit status, read from the output dir as it is on disk."""
@@ -66,14 +71,14 @@ class Mode:
 def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: Callable[[list[str]], DictConfig]):
     """Compose and validate every job (the model is built: derived numbers fail here); then the memory budget
     of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
-    job's overrides."""
+    job's overrides. Returns the warnings (each once): an empty steady-state window."""
     from ddmr_cli.config import budget
     from ddmr_cli.config.validate import (check_additions, job_estimate, message, steady_state_warning,
                                           validate_config)
     from ddmr_cli.errors import ConfigError
 
     largest = None
-    warned: set[str] = set()
+    warned: list[str] = []
     for job in jobs:
         current = job["overrides"]
         try:
@@ -87,14 +92,14 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
                              f"value") from None
         warning = steady_state_warning(sim)
         if warning is not None and warning not in warned:  # once per distinct message, not once per job
-            warned.add(warning)
-            print(f"ddmr: warning: {warning}", file=sys.stderr)
+            warned.append(warning)
         est = job_estimate(cfg, sim)
         largest = est if largest is None or est.total > largest.total else largest
     if multirun and largest is not None:
         at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
                                  len(jobs))
         budget.check(largest, base.run.get("max_memory_gb"), at_once, (base.get("cluster") or {}).get("mem_gb"))
+    return tuple(warned)
 
 
 class SingleRun(Mode):
@@ -105,7 +110,7 @@ class SingleRun(Mode):
 
     def plan(self, base, overrides, parsed, compose):
         jobs = [{"dir": "", "overrides": list(overrides)}]
-        _validate_jobs(jobs, base, False, compose)
+        self.warnings = _validate_jobs(jobs, base, False, compose)
         return Plan(jobs, [])
 
     def preflight(self, out_dir, jobs):
@@ -135,7 +140,7 @@ class Sweep(Mode):
         subdir = [o for o in overrides if o.startswith("hydra.sweep.subdir=")]
         _refuse_escapes(jobs, subdir)
         _refuse_shared_dirs(jobs, subdir)
-        _validate_jobs(jobs, base, True, compose)
+        self.warnings = _validate_jobs(jobs, base, True, compose)
         return Plan(jobs, [])
 
     def preflight(self, out_dir, jobs):
@@ -157,6 +162,7 @@ class Sweep(Mode):
 
         jobdir.clean_leftovers(out_dir, [job["dir"] for job in jobs])
         print(f"ddmr: sweep of {len(jobs)} jobs validated -> {out_dir}", file=sys.stderr)
+        super().before_launch(out_dir, jobs)
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.storage import sweep
