@@ -21,7 +21,9 @@ Optuna (the ``tune`` extra: gain tuning and the calibration search, ``hydra/swee
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Sequence
+import contextlib
+import functools
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from ddmr_cli.errors import ConfigError, DDMRError
 
@@ -56,6 +58,58 @@ def apply_overrides(overrides: Sequence, cfg) -> None:
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
 
     ConfigLoaderImpl._apply_overrides_to_config(list(overrides), cfg)
+
+
+def check_sweep_overrides(parsed: Sequence, run_mode, from_shell: bool = True) -> None:
+    """Hydra's check that sweep overrides appear only in a multirun (and, from the shell, not as bare lists):
+    ``ConfigLoaderImpl.validate_sweep_overrides_legal``."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    ConfigLoaderImpl.validate_sweep_overrides_legal(list(parsed), run_mode=run_mode, from_shell=from_shell)
+
+
+@contextlib.contextmanager
+def loading_through(load: Callable[..., Any]) -> Iterator[None]:
+    """Within the context, every whole composition of this process (Hydra's compose API, Hydra's ``get_mode``,
+    run and multirun) calls ``load(loader, compose, config_name, overrides, run_mode, from_shell,
+    validate_sweep_overrides)``, ``compose`` being the loader's own method: ``ConfigLoaderImpl.load_configuration``
+    is wrapped, and restored on leaving (:func:`ddmr_cli.config.compose_once.compositions_once`)."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    original = ConfigLoaderImpl.load_configuration
+
+    def load_configuration(self, config_name, overrides, run_mode, from_shell=True, validate_sweep_overrides=True):
+        return load(self, functools.partial(original, self), config_name, overrides, run_mode, from_shell,
+                    validate_sweep_overrides)
+
+    ConfigLoaderImpl.load_configuration = load_configuration
+    try:
+        yield
+    finally:
+        ConfigLoaderImpl.load_configuration = original
+
+
+def cache_plugin_scan() -> None:
+    """Make Hydra's plugin scan of this process run once: ``Plugins._scan_all_plugins`` re-executes every module of
+    ``hydra_plugins`` whenever the plugin registry is made anew, which a launcher's worker does for every job
+    (``Singleton.set_state`` drops the registry and scans again: about a quarter of a short job's CPU, more with
+    the Optuna and submitit plugins installed). Later scans of the same packages return the first scan's plugin
+    classes, as a worker that ran one job has them. Idempotent."""
+    from hydra.core.plugins import Plugins
+
+    scan = Plugins.__dict__["_scan_all_plugins"].__func__
+    if getattr(scan, "ddmr_cached", False):
+        return
+    found: dict[tuple[str, ...], Any] = {}
+
+    def scan_once(modules):
+        key = tuple(m.__name__ for m in modules)
+        if key not in found:
+            found[key] = scan(modules)
+        return found[key]
+
+    scan_once.ddmr_cached = True
+    Plugins._scan_all_plugins = staticmethod(scan_once)
 
 
 def overrides_dirname(parsed: Sequence, exclude_keys: Iterable[str], item_sep: str, kv_sep: str) -> str:

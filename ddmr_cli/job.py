@@ -31,21 +31,6 @@ from ddmr_cli.config.build import result_config
 log = logging.getLogger("ddmr")
 
 
-class ProgressLog:
-    """Logs ``label: steps done/total (percent), elapsed`` every ``every`` seconds and at the end."""
-
-    def __init__(self, label: str, n_runs: int, every: float = 2.0) -> None:
-        self.label, self.n_runs, self.every = label, n_runs, every
-        self.start = self.last = time.perf_counter()
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.perf_counter()
-        if now - self.last >= self.every or done == total:
-            self.last = now
-            log.info("%s: %d runs, step %d/%d (%.0f%%), %.1f s elapsed", self.label, self.n_runs, done, total,
-                     100.0 * done / total, now - self.start)
-
-
 @dataclass(frozen=True)
 class JobPlace:
     """Where a job runs: its output dir, its overrides (as given) and whether it is one job of a sweep (then its
@@ -165,7 +150,7 @@ def execute(cfg: DictConfig, place: JobPlace, digest: str | None = None, sim=Non
     out = place.out
     with jobdir.Stage(out) as stage:
         summary = _simulate_and_write(cfg, sim, seeds, stage.path, list(place.overrides), digest,
-                                      place.threads(cfg))
+                                      place.threads(cfg), bars=not place.in_sweep)
         summary = stage.commit(summary)
     stats = summary["statistics"]
     label = f"{summary['controller']}/{summary['scenario']}"
@@ -177,14 +162,22 @@ def execute(cfg: DictConfig, place: JobPlace, digest: str | None = None, sim=Non
     return summary
 
 
-def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overrides, digest, threads: int) -> dict:
-    """Simulate and write every output file into ``out`` (the staging dir); returns the summary to commit."""
+def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overrides, digest, threads: int,
+                        bars: bool = True) -> dict:
+    """Simulate and write every output file into ``out`` (the staging dir); returns the summary to commit.
+    With ``run.progress``, a bar over the steps (``bars``: not in a sweep, whose launching process draws one bar
+    over its jobs) and the line said before the step loop is compiled (:mod:`ddmr_cli.progress`)."""
     from ddmr_cli.engine.simulation import simulate
+    from ddmr_cli.progress import StepBar
 
     label = f"{sim.controller.name}/{sim.scenario.name}"
-    progress = ProgressLog(label, len(seeds)) if cfg.run.progress else None
-    result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
-                      bands=bool(cfg.run.bands))
+    progress = StepBar(label, len(seeds), sim.n_steps, enabled=bool(cfg.run.progress) and bars)
+    try:
+        result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
+                          bands=bool(cfg.run.bands),
+                          compiling=(lambda: progress.compiling(sim.controller.name)) if cfg.run.progress else None)
+    finally:
+        progress.close()
     io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
@@ -207,6 +200,8 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
         "options": jobdir.output_options(cfg),
         "parameters": sim.controller.parameters(),
         "estimators": list(sim.controller.estimators()),
+        "diagnostics": [{"name": c.name, "kind": c.kind, "description": c.description}
+                        for c in sim.controller.diagnostics()],
         "seeds": [result.seeds[0], result.seeds[-1]],
         "series_seeds": list(result.series),
         "statistics": result.summary(),
@@ -218,4 +213,4 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     }
 
 
-__all__ = ["JobPlace", "Task", "run_job", "execute", "ProgressLog"]
+__all__ = ["JobPlace", "Task", "run_job", "execute"]

@@ -51,6 +51,7 @@ def smoke_sweep_dir(tmp_path_factory) -> Path:
     """A complete ``+experiment=smoke`` sweep (joblib launcher), run once for the whole session."""
     root = tmp_path_factory.mktemp("smoke")
     sweep_dir = root / "sweep"
-    proc = run_ddmr(["run", "-m", "+experiment=smoke", f"hydra.sweep.dir={sweep_dir}"], cwd=root)
+    # launcher=local named: a sweep this small would otherwise run in-process (cli/modes.py, small_local_sweep)
+    proc = run_ddmr(["run", "-m", "+experiment=smoke", "launcher=local", f"hydra.sweep.dir={sweep_dir}"], cwd=root)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return sweep_dir

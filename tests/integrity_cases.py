@@ -47,11 +47,17 @@ CASES = (
     # new keys only under a free-form dict
     Case("typo added", ("+run.nruns=5",), 2, "+run.nruns=5: unknown key run.nruns (did you mean run.n_runs?)"),
     Case("typo force-added", ("++run.nruns=5",), 2, "++run.nruns=5: unknown key run.nruns"),
+    # a key a schema does not have, set without +: the same did-you-mean (issue 29)
+    Case("typo set", ("run.nruns=5",), 2, "run.nruns=5: unknown key run.nruns (did you mean run.n_runs?)"),
+    Case("group typo set", ("controler=pid",), 2, "controler=pid: unknown key controler (did you mean controller?)"),
+    Case("sensor typo", ("sensor=encodr",), 2, "sensor=encodr: unknown sensor; available: encoder, ideal, noisy"),
+    Case("actuator typo", ("actuator=delay_2ms",), 2, "actuator=delay_2ms: unknown actuator; available: ideal, pwm8, "
+                                                       "realistic"),
     Case("unknown controller key", ("+controller.foo=1",), 2, "+controller.foo=1: unknown key controller.foo"),
     Case("nested typo", ("+simulation.dtt=0.001",), 2, "did you mean simulation.dt?"),
-    Case("typo set", ("run.nruns=5",), 2, "run.nruns=5: unknown key (did you mean run.n_runs?)"),
+    Case("typo set", ("run.nruns=5",), 2, "run.nruns=5: unknown key run.nruns (did you mean run.n_runs?)"),
     Case("controller typo set", ("controller.switchng_gain=3",), 2,
-         "controller.switchng_gain=3: unknown key (did you mean controller.switching_gain?)"),
+         "controller.switchng_gain=3: unknown key controller.switchng_gain (did you mean controller.switching_gain?)"),
     Case("unknown cluster key", ("+cluster.foo=1",), 2, "cluster.foo=1: unknown cluster key"),
     # _target_ swaps
     Case("robot as controller", ("controller._target_=ddmr_cli.model.robot.Robot",), 2, "must be a WheelController"),

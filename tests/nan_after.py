@@ -25,7 +25,7 @@ def start(p, st, w0_R, w0_L):
 @law
 def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
     u_R = math.nan if k >= st["k_bad"] else p.voltage
-    return u_R, p.voltage, wd_R - w_R, wd_L - w_L, 0.0, 0.0, 0.0, 0.0
+    return u_R, p.voltage  # no diagnostic channels: the engine records s as NaN
 
 
 @law

@@ -76,8 +76,8 @@ def test_eso_estimate_of_d_converges_in_the_robot_loop(adrc):
     s = simulate(sim, [0], keep_series=[0]).series[0]
     for wheel in ("right", "left"):
         np.testing.assert_allclose(s[f"d_true_{wheel}"], d, rtol=1e-10)
-        assert abs(s[f"d_hat_ndo_{wheel}"][0]) < 1e-9  # no kick at the rolling start
-        np.testing.assert_allclose(s[f"d_hat_ndo_{wheel}"][-100:], d, rtol=1e-4)
+        assert abs(s[f"d_hat_eso_{wheel}"][0]) < 1e-9  # no kick at the rolling start
+        np.testing.assert_allclose(s[f"d_hat_eso_{wheel}"][-100:], d, rtol=1e-4)
         assert np.max(np.abs(s[f"s_{wheel}"][-100:])) < 1e-5 < np.max(np.abs(s[f"s_{wheel}"]))
 
 
@@ -95,7 +95,7 @@ def test_the_estimate_of_d_is_taken_under_the_applied_voltage_while_saturated(ad
     for wheel in ("right", "left"):
         late = slice(-100, None)
         assert np.all(np.abs(s[f"u_command_{wheel}"][late]) > 11.0)  # saturated to the end
-        np.testing.assert_allclose(s[f"d_hat_ndo_{wheel}"][late], d, rtol=1e-3)
+        np.testing.assert_allclose(s[f"d_hat_eso_{wheel}"][late], d, rtol=1e-3)
 
 
 def test_zero_disturbance_and_zero_initial_error_keep_every_error_at_zero(adrc):

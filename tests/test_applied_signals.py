@@ -32,5 +32,5 @@ def test_adrcs_reported_estimate_is_the_esos_under_the_applied_voltage_when_satu
         st["z1"][0], st["z2"][0] = eso(st["z1"][0], st["z2"][0], w_R[k], u_R[k], p.b0, p.beta1, p.beta2, p.dt)
         st["z1"][1], st["z2"][1] = eso(st["z1"][1], st["z2"][1], w_L[k], u_L[k], p.b0, p.beta1, p.beta2, p.dt)
     scale = np.abs(expected).max()
-    np.testing.assert_allclose(r["d_hat_ndo_right"], expected[:, 0], rtol=0, atol=1e-9 * scale)
-    np.testing.assert_allclose(r["d_hat_ndo_left"], expected[:, 1], rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(r["d_hat_eso_right"], expected[:, 0], rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(r["d_hat_eso_left"], expected[:, 1], rtol=0, atol=1e-9 * scale)

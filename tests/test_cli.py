@@ -22,9 +22,11 @@ from conftest import ddmr_executable, run_ddmr
 from ddmr_cli.storage.io import read_series
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: the controllers the smoke sweep runs: every conf/controller preset (test_the_smoke_sweep_runs_every_controller)
-SMOKE_CONTROLLERS = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "conf" / "controller").glob("*.yaml"))
-SMOKE_JOBS = 2 * len(SMOKE_CONTROLLERS)
+#: every controller preset (conf/controller/*.yaml): the smoke sweep sweeps them all, on both scenarios
+CONTROLLER_PRESETS = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "conf" / "controller").glob("*.yaml"))
+SMOKE_JOBS = 2 * len(CONTROLLER_PRESETS)
+#: presets with no feedback, whose runs may diverge
+OPEN_LOOP = {"open_loop"}
 pytestmark = pytest.mark.slow
 
 
@@ -75,12 +77,11 @@ def test_single_run_writes_every_output(tmp_path):
     assert (out / "config.yaml").read_text().count("hydra") == 0
 
 
-def test_the_smoke_sweep_runs_every_controller():
-    """The CI smoke sweep sweeps what exists: every conf/controller/*.yaml, no other."""
-    import yaml
+def test_the_smoke_sweep_sweeps_every_controller_preset():
+    from omegaconf import OmegaConf
 
-    preset = yaml.safe_load((Path(__file__).resolve().parents[1] / "conf" / "experiment" / "smoke.yaml").read_text())
-    assert sorted(preset["hydra"]["sweeper"]["params"]["controller"].split(",")) == SMOKE_CONTROLLERS
+    smoke = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf" / "experiment" / "smoke.yaml")
+    assert sorted(str(smoke.hydra.sweeper.params.controller).split(",")) == CONTROLLER_PRESETS
 
 
 def test_smoke_sweep_through_joblib(smoke_sweep_dir):
@@ -88,12 +89,9 @@ def test_smoke_sweep_through_joblib(smoke_sweep_dir):
     assert len(jobs) == SMOKE_JOBS and set(jobs.status) == {"complete"}
     metrics = _metrics(smoke_sweep_dir)
     assert len(metrics) == SMOKE_JOBS * 2
-    assert sorted(set(metrics.controller)) == SMOKE_CONTROLLERS
+    assert sorted(set(metrics.controller)) == CONTROLLER_PRESETS
     assert set(metrics.scenario) == {"paper_1", "paper_2"}
-    # a diverging run is a result (NaN metrics, its divergence time recorded): only the open loop diverges here
-    diverged = metrics.divergence_time.notna()
-    assert set(metrics[diverged].controller) <= {"open_loop"}
-    assert np.isfinite(metrics[~diverged].deviation_mae).all() and metrics[diverged].deviation_mae.isna().all()
+    assert np.isfinite(metrics[~metrics.controller.isin(OPEN_LOOP)].deviation_mae).all()
     plan = json.loads((smoke_sweep_dir / "sweep_plan.json").read_text())
     assert sorted(j["dir"] for j in plan["jobs"]) == sorted(jobs.job)
     # per-job plots for exactly one job (the smoke preset's choice), time series for every job

@@ -3,6 +3,10 @@ here, by name), and the version check refuses an unsupported release."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import textwrap
+
 import pytest
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
@@ -64,3 +68,31 @@ def test_config_repository_answers_group_questions():
         repo = compat.config_repository(GlobalHydra.instance().config_loader())
         assert repo.group_exists("controller") and not repo.group_exists("no_such_group")
         assert "smc" in repo.get_group_options("controller")
+
+
+def test_a_worker_scans_hydras_plugins_once():
+    """A launcher's worker restores Hydra's state for every job (Singleton.set_state), which scanned every
+    hydra_plugins module again (new plugin classes each time); once the sweep's loader is unpickled in the worker
+    (cache_plugin_scan) the scan is made once and every job gets the same classes.
+
+    Run in a fresh interpreter, as a worker is: each scan re-executes Hydra's plugin modules in place, so doing it
+    in the test process would leave later tests with config sources whose classes are no longer the modules'."""
+    script = textwrap.dedent("""
+        import pickle
+        from hydra.core.plugins import Plugins
+        from hydra.core.singleton import Singleton
+        from ddmr_cli.config.compose_once import SweepConfigLoader
+
+        pickle.loads(pickle.dumps(SweepConfigLoader(None)))  # what a worker does with each batch of jobs
+        Singleton.set_state(Singleton.get_state())
+        first = dict(Plugins.instance().class_name_to_class)
+        Singleton.set_state(Singleton.get_state())
+        again = Plugins.instance().class_name_to_class
+        assert first, "no plugin found"
+        moved = [name for name, cls in first.items() if again[name] is not cls]
+        assert not moved, f"scanned again: {moved}"
+        print("scanned once:", len(first), "plugins")
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "scanned once:" in done.stdout

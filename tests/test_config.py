@@ -127,9 +127,9 @@ def test_experiment_presets_define_their_sweeps():
     assert dict(cfg.hydra.sweeper.params) == {"controller": "pid,smc,smc_ndo,smc_ndo_nno", "scenario": "paper_1,paper_2"}
     smoke = _compose(["+experiment=smoke"], return_hydra_config=True)
     assert smoke.run.n_runs == 2
-    assert set(smoke.hydra.sweeper.params.controller.split(",")) == set(CONTROLLERS)
+    assert set(smoke.hydra.sweeper.params.controller.split(",")) == set(group_options("controller"))  # every preset
     # per-job plots for one job of the smoke sweep only
-    plotting = [(c, s) for c in CONTROLLERS for s in SCENARIOS
+    plotting = [(c, s) for c in group_options("controller") for s in SCENARIOS
                 if _compose(["+experiment=smoke", f"controller={c}", f"scenario={s}"]).run.plots]
     assert plotting == [("smc_ndo_nno", "paper_2")]
     assert _compose(["+experiment=smoke", "controller=pid", "run.plots=true"]).run.plots is True
@@ -313,3 +313,87 @@ def test_a_jobs_config_file_is_omegaconfs_yaml(overrides):
     text = io.yaml_text(container)
     assert text == OmegaConf.to_yaml(OmegaConf.create(container), resolve=True)
     assert OmegaConf.to_container(OmegaConf.create(text)) == container
+
+
+#: the calls one ``ddmr run`` process makes (issue 28): the CLI's validation, Hydra's get_mode (multirun, no sweep
+#: check), Hydra's run or multirun, each with the values of the hydra node Hydra adds
+MEMO_CALLS = [
+    [(["run.n_runs=3"], "RUN"), (["run.n_runs=3", "hydra.run.dir=/tmp/ddmr-x"], "MULTIRUN"),
+     (["run.n_runs=3", "hydra.run.dir=/tmp/ddmr-x", "hydra.mode=RUN"], "RUN")],
+    [(["hydra.run.dir=/tmp/ddmr-y", "controller=pid", "hydra.job.chdir=false"], "RUN"),
+     (["controller=pid", "hydra.job.chdir=false", "hydra.run.dir=/tmp/ddmr-z"], "RUN")],
+    [(["launcher=basic", "controller=smc,pid", "run.n_runs=2"], "MULTIRUN"),
+     (["launcher=basic", "controller=smc,pid", "run.n_runs=2", "hydra.sweep.dir=/tmp/s", "hydra.mode=MULTIRUN"],
+      "MULTIRUN")],
+]
+
+
+@pytest.mark.parametrize("calls", MEMO_CALLS, ids=lambda c: " ".join(c[-1][0]))
+def test_one_composition_per_process_gives_hydras_configs(calls):
+    """Within compositions_once, the calls of one ``ddmr run`` compose once and each gets the config a full
+    composition gives, hydra node included (its overrides, override_dirname, choices, job name)."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.types import RunMode
+
+    from ddmr_cli.config.compose_once import compositions_once
+    from ddmr_cli.config import _initialized
+
+    with _initialized():
+        loader = GlobalHydra.instance().config_loader()
+    full = [loader.load_configuration("config", overrides=list(o), run_mode=RunMode[m], validate_sweep_overrides=m == "RUN")
+            for o, m in calls]
+    composed = []
+    original = type(loader).load_configuration
+    with compositions_once() as memo:
+        fast = []
+        for o, m in calls:
+            cfg = loader.load_configuration("config", overrides=list(o), run_mode=RunMode[m],
+                                            validate_sweep_overrides=m == "RUN")
+            cfg.run.n_runs = 99  # a caller's change must not reach the next call
+            fast.append(cfg)
+        assert len(memo._kept) == 1
+    assert type(loader).load_configuration is original
+    for a, b in zip(fast, full):
+        a.run.n_runs = b.run.n_runs
+        assert OmegaConf.to_container(a) == OmegaConf.to_container(b)
+        assert OmegaConf.is_struct(a)
+
+
+def test_one_composition_per_process_refuses_what_hydra_refuses():
+    """A sweep in a run, or a bad value of the hydra node, is refused from the kept composition as Hydra refuses it."""
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.errors import HydraException
+    from hydra.types import RunMode
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ddmr_cli.config.compose_once import compositions_once
+    from ddmr_cli.config import _initialized
+
+    with _initialized():
+        loader = GlobalHydra.instance().config_loader()
+    with compositions_once():
+        loader.load_configuration("config", overrides=["controller=pid,smc"], run_mode=RunMode.MULTIRUN)
+        with pytest.raises(HydraException, match="sweep"):
+            loader.load_configuration("config", overrides=["controller=pid,smc"], run_mode=RunMode.RUN)
+        loader.load_configuration("config", overrides=[], run_mode=RunMode.RUN)
+        with pytest.raises((HydraException, OmegaConfBaseException)):
+            loader.load_configuration("config", overrides=["hydra.run.dri=x"], run_mode=RunMode.RUN)
+
+
+@pytest.mark.parametrize("overrides, n_jobs, work, expected", [
+    ([], 8, 6_000_000, True),                                      # table4: in this process (launcher=basic)
+    ([], 17, 1_000, False),                                        # many jobs: joblib's workers
+    ([], 8, 10 ** 9, False),                                       # much simulation: in parallel processes
+    (["launcher=local"], 8, 6_000_000, False),                     # a launcher named on the command line is kept
+    (["launcher=submitit_local"], 2, 1_000, False),
+    (["cluster.cpus=2"], 2, 1_000, False),                         # the launcher's settings named: kept
+])
+def test_small_local_sweeps_run_in_this_process(overrides, n_jobs, work, expected):
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from ddmr_cli.cli.modes import small_local_sweep
+    from ddmr_cli.config import compose_config
+
+    base = compose_config(overrides, return_hydra_config=True)
+    parsed = OverridesParser.create().parse_overrides(overrides)
+    assert small_local_sweep(base, parsed, n_jobs, work) is expected

@@ -119,7 +119,7 @@ def test_nn_observer_reduces_steady_error():
         assert s_nn < 0.2 * s_plain
         # the network's estimate moved towards the true disturbance (same sign, most of it)
         assert nn[f"d_hat_nn_{wheel}"][-1] == pytest.approx(D, rel=0.1)
-        assert plain[f"d_hat_nn_{wheel}"][-1] == 0.0
+        assert f"d_hat_nn_{wheel}" not in plain  # a controller without a network records no NN channel
 
 
 def test_nn_observer_with_default_gains_moves_the_right_way():
@@ -153,8 +153,8 @@ def test_zero_disturbance_zero_error_stays_zero(name):
     for wheel in ("right", "left"):
         assert np.max(np.abs(s[f"s_{wheel}"])) < 1e-12 * w_ref
         assert np.max(np.abs(s[f"w_{wheel}"] - w_ref)) < 1e-12 * w_ref
-        assert np.max(np.abs(s[f"d_hat_ndo_{wheel}"])) < 1e-9
-        assert np.max(np.abs(s[f"d_hat_nn_{wheel}"])) < 1e-9
+        for channel in (k for k in s if k.startswith("d_hat_") and k.endswith(wheel)):  # each estimate of d
+            assert np.max(np.abs(s[channel])) < 1e-9, channel
         # the voltage is the steady-state one, B w / K_u, all the time
         np.testing.assert_allclose(s[f"u_{wheel}"], ROBOT.damping * w_ref / ROBOT.voltage_gain, rtol=1e-12)
     assert res.metric("deviation_max")[0] < 1e-12

@@ -62,3 +62,53 @@ def test_bad_gain_is_refused_naming_the_key(computed_torque):
 
     with pytest.raises(ConfigError, match=r"controller\.kp=-1"):
         computed_torque.from_page(kp=-1)
+
+
+def _user_package(root: Path, target_class: str = "ComputedTorquePI") -> tuple[Path, Path]:
+    """The page's module in a package of the user's own (not under ddmr_cli) and its YAML in the user's config dir,
+    as the page's "In your own package" paragraph says: returns (PYTHONPATH entry, config dir)."""
+    text = PAGE.read_text(encoding="utf-8")
+    package = root / "src" / "mylab"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("", encoding="utf-8")
+    (package / "ct.py").write_text(re.search(r"<!-- extending:module -->\n```python\n(.*?)```", text, re.S).group(1),
+                                   encoding="utf-8")
+    conf = root / "myconf" / "controller"
+    conf.mkdir(parents=True)
+    page_yaml = re.search(r"<!-- extending:yaml -->\n```yaml\n(.*?)```", text, re.S).group(1)
+    (conf / "computed_torque.yaml").write_text(
+        page_yaml.replace("ddmr_cli.control.computed_torque.ComputedTorquePI", f"mylab.ct.{target_class}"),
+        encoding="utf-8")
+    return root / "src", root / "myconf"
+
+
+def test_the_page_s_controller_runs_through_the_cli_from_the_user_s_own_package(tmp_path):
+    """docs/extending.md's path, on the command line: the module outside ddmr_cli on PYTHONPATH, its YAML (the
+    page's, unchanged but for the target) in a --config-dir; the run completes and its gains are the YAML's."""
+    from conftest import run_ddmr
+
+    src, conf = _user_package(tmp_path)
+    out = tmp_path / "run"
+    proc = run_ddmr(["run", "--config-dir", str(conf), "controller=computed_torque", "run.n_runs=2",
+                     "simulation.duration=0.05", "run.plots=false", f"hydra.run.dir={out}"], cwd=tmp_path,
+                    env={"PYTHONPATH": str(src)})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["controller"]["_target_"] == "mylab.ct.ComputedTorquePI"
+    assert (saved["controller"]["kp"], saved["controller"]["ki"]) == (40.0, 400.0)
+    import pandas as pd
+
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert len(metrics) == 2 and np.isfinite(metrics.deviation_mae).all()
+
+
+def test_a_user_target_that_is_not_a_controller_is_refused_naming_the_key(tmp_path):
+    from conftest import run_ddmr
+
+    src, conf = _user_package(tmp_path, target_class="ComputedTorqueParameters")
+    proc = run_ddmr(["run", "--config-dir", str(conf), "controller=computed_torque", f"hydra.run.dir={tmp_path / 'r'}"],
+                    cwd=tmp_path, env={"PYTHONPATH": str(src)})
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1].startswith(
+        "ddmr: error: controller._target_='mylab.ct.ComputedTorqueParameters': only ddmr_cli.* classes")
+    assert not (tmp_path / "r").exists()

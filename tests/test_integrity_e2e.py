@@ -173,7 +173,7 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
 def test_workers_stop_when_the_parent_is_killed(tmp_path):
-    proc = _popen(["run", "-m", "+experiment=smoke", "run.n_runs=20", f"hydra.sweep.dir={tmp_path / 's'}"],
+    proc = _popen(["run", "-m", "+experiment=smoke", "run.n_runs=20", "launcher=local", f"hydra.sweep.dir={tmp_path / 's'}"],
                   cwd=tmp_path)
     deadline = time.time() + 120
     workers: list[int] = []

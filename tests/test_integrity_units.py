@@ -162,6 +162,9 @@ def test_one_writer_per_dir_and_the_lock_goes_with_its_holder(tmp_path):
             with jobdir.DirLock(tmp_path / "d"):
                 pass
         assert f"in use by pid {os.getpid()} on {holder['host']}" in str(info.value)
+        assert jobdir.read_holder(tmp_path / "d") == holder  # the refused writer left the record alone
+        assert jobdir._held(tmp_path / "d") == holder  # the probe sees it held
+    assert jobdir._held(tmp_path / "d") is None and (tmp_path / "d" / jobdir.LOCK).is_file()  # released, kept
     with jobdir.DirLock(tmp_path / "d"):  # released: the next writer gets it
         pass
 
@@ -239,6 +242,17 @@ def test_the_lowered_n_runs_fits():
         budget.check(dataclasses.replace(est, n_runs=fit + 1000), 4.0)
 
 
+@pytest.mark.skipif(not os.path.isfile("/proc/meminfo"), reason="compares with Linux's /proc/meminfo")
+def test_available_memory_is_memavailable_of_proc_meminfo():
+    """psutil (issue 29) reads the number the hand-written parser read: MemAvailable, in kB."""
+    def mem_available() -> int:
+        line = next(x for x in open("/proc/meminfo", encoding="ascii") if x.startswith("MemAvailable:"))
+        return int(line.split()[1]) * 1024
+
+    before, ours, after = mem_available(), budget.available_bytes(), mem_available()
+    assert min(before, after) - 64 * 2**20 <= ours <= max(before, after) + 64 * 2**20  # other processes move it
+
+
 def test_the_default_budget_and_jobs_at_once():
     limit, source = budget.budget_bytes(None)
     assert 0 < limit <= budget.available_bytes() and "of the" in source
@@ -307,7 +321,6 @@ def test_new_cli_modules_hold_no_mutable_state(module):
 # --- the reaper ----------------------------------------------------------------------------------------------
 
 
-@pytest.mark.skipif(not os.path.isdir("/proc"), reason="the reaper reads /proc (Linux)")
 def test_the_reaper_ends_workers_and_leaves_the_resource_trackers(tmp_path):
     """After a sweep the reaper ends every process marked with the run's DDMR_PARENT, except resource trackers:
     those are the parent's own (a later sweep of the same process, `ddmr sensitivity`, still uses them)."""

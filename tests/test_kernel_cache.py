@@ -223,3 +223,41 @@ def test_the_identity_spells_nested_shapes_and_tuple_classes():
     other = np.zeros(2, dtype=[("delay_line", "f8", (6, 2))])
     assert call_identity((one,)) != call_identity((other,))
     assert "(3, 2)" in call_identity((one,)) and "(6, 2)" in call_identity((other,))
+
+
+def test_the_cache_key_covers_what_the_loop_inlines_and_only_that():
+    """Editing one controller's module changes that controller's key alone; editing a law every loop inlines (the
+    stepper, the plant's robot.py) changes every key; the RBF network's module is SMC's, not PID's (issue 27)."""
+    from pathlib import Path
+
+    from ddmr_cli.engine import kernels
+
+    modules = ("ddmr_cli.control.pid", "ddmr_cli.control.smc", "ddmr_cli.control.adrc")
+    base = {m: kernels.sources_digest(m) for m in modules}
+
+    def edited(name):
+        def read(path: Path) -> bytes:
+            data = path.read_bytes()
+            return data + b"\n# edited\n" if path.name == name else data
+        return {m: kernels.sources_digest(m, read=read) for m in modules}
+
+    changed = {name: {m for m, d in edited(name).items() if d != base[m]}
+               for name in ("pid.py", "rbf.py", "adrc.py", "stepper.py", "robot.py")}
+    assert changed == {"pid.py": {"ddmr_cli.control.pid"}, "rbf.py": {"ddmr_cli.control.smc"},
+                       "adrc.py": {"ddmr_cli.control.adrc"}, "stepper.py": set(modules), "robot.py": set(modules)}
+
+
+def test_the_controller_slot_is_the_only_substitution():
+    """The template takes the controller's four laws from engine/controller_slot.py; a copy differs from the
+    template in exactly those four import lines (and the cached-law import), pointed at the controller's module."""
+    import inspect
+
+    from ddmr_cli.engine import kernels, stepper
+
+    template = inspect.getsource(stepper).splitlines()
+    copy = kernels._source_for("ddmr_cli.control.smc").splitlines()[1:]  # the first line names the copy's origin
+    assert len(copy) == len(template)
+    differ = [(a, b) for a, b in zip(template, copy) if a != b]
+    assert len(differ) == 5
+    slot_lines = [b for a, b in differ if "controller_slot" in a]
+    assert len(slot_lines) == 4 and all(b.startswith("from ddmr_cli.control.smc import ") for b in slot_lines[:1])

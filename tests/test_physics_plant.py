@@ -148,6 +148,46 @@ def test_a_robot_that_drives_off_the_field_is_flagged_diverged_and_never_raises(
     assert all(np.isfinite(v).all() for v in s.values())
 
 
+def test_a_robot_knocked_onto_its_side_is_flagged_tipped_and_never_raises():
+    """A roll rate of 80 rad/s (a kick from the side) tumbles run 0 past plant.divergence.tip_angle (it would reach
+    2.5 rad, on its back); run 1 drives on.
+    The tipped run is no longer stepped: its state stays finite where it diverged, its disturbance NaN."""
+    plant = make("flat", threads=1)
+    plant.reset(np.array([0, 1]), np.zeros((2, 3)), np.full((2, 2), 10.0))
+    plant._datas[0].qvel[3] = 80.0  # the chassis's roll rate [rad/s] (free joint: dofs 3-5 are body rates)
+    flagged_at = tipped_at = None
+    for k in range(1000):
+        plant.step(np.full((2, 2), 5.0), np.ones(2))
+        q = plant._qpos[0]
+        tilt = np.arccos(np.clip(1.0 - 2.0 * (q[4] ** 2 + q[5] ** 2), -1, 1))
+        if tipped_at is None and tilt > plant.config.divergence.tip_angle:
+            tipped_at = k
+        if flagged_at is None and plant.diverged()[0]:
+            flagged_at, tilt_at = k, tilt
+    s = plant.state()
+    print(f"run 0 kicked over: diverged after {flagged_at} steps at a tilt of {tilt_at:.3f} rad "
+          f"(tip_angle {plant.config.divergence.tip_angle} rad); run 1 at x = {s['x'][1]:.3f} m")
+    assert plant.diverged().tolist() == [True, False]
+    assert flagged_at == tipped_at and tilt_at > plant.config.divergence.tip_angle  # flagged the step it tipped
+    assert np.isnan(plant.true_disturbance()[0]).all() and np.isfinite(plant.true_disturbance()[1]).all()
+    assert all(np.isfinite(v).all() for v in s.values())
+
+
+def test_a_start_on_very_rough_ground_settles_upright_whatever_the_seed():
+    """At reset the robot drops from above the highest ground under its footprint: none starts with a wheel inside a
+    crest (seed 37 at x = 6 m did when placed by the ground under the axle midpoint: flung, tipped at step 0)."""
+    plant = make(threads=1)
+    seeds = np.arange(30, 50)
+    plant.reset(seeds, np.column_stack([np.full(20, 6.0), np.zeros(20), np.zeros(20)]), np.full((20, 2), 33.3))
+    for _ in range(20):
+        plant.step(np.full((20, 2), 10.8), np.ones(20))
+    q = plant._qpos
+    tilt = np.arccos(np.clip(1.0 - 2.0 * (q[:, 4] ** 2 + q[:, 5] ** 2), -1, 1))
+    print(f"after reset and 20 ms on very rough ground: largest tilt {tilt.max():.3f} rad, z {q[:, 2].min():.4f} .. "
+          f"{q[:, 2].max():.4f} m")
+    assert not plant.diverged().any() and tilt.max() < 0.2 and q[:, 2].max() < 0.06
+
+
 def test_non_finite_voltages_are_a_diverged_run_not_an_exception():
     plant = make("flat", threads=1)
     plant.reset(np.array([0, 1]), np.zeros((2, 3)), np.zeros((2, 2)))
@@ -164,12 +204,18 @@ def test_non_finite_voltages_are_a_diverged_run_not_an_exception():
     ({"heightfield__x_max": 8.0}, "paper", "terrain.zones.slightly_rough.start=10.0", "zone outside the heightfield"),
     ({"timestep": 0.005}, "paper", "plant.timestep=0.005", "MuJoCo cannot hold the contacts stable"),
     ({"timestep": 0.0003}, "paper", "plant.timestep=0.0003", "whole number of steps"),
+    ({"caster__stiffness": 1e6}, "paper", "plant.timestep=0.001", "MuJoCo cannot hold the caster springs stable"),
     ({"wheel__shape": "square"}, "paper", "plant.wheel.shape='square'", "must be one of"),
     ({"wheel__colour": "red"}, "paper", "plant.wheel.colour='red'", "unknown key"),
 ])
 def test_bad_input_is_one_line_naming_the_key_and_value(overrides, terrain_name, key, rule):
+    _assert_one_line(lambda: make(terrain_name, **overrides), key, rule)
+
+
+def _assert_one_line(build, key, rule):
+    """``build()`` raises a ConfigError of one line that starts ``key`` and states ``rule``."""
     with pytest.raises(ConfigError) as info:
-        make(terrain_name, **overrides)
+        build()
     message = str(info.value)
     assert message.startswith(key) and rule in message and "\n" not in message, message
 
@@ -178,6 +224,48 @@ def test_without_mujoco_constructing_the_plant_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "mujoco", None)  # `import mujoco` now raises ImportError
     with pytest.raises(ConfigError) as info:
         make("flat")
+    assert str(info.value) == 'plant=\'mujoco\': needs MuJoCo, the optional extra: pip install -e ".[physics]"'
+
+
+def _validated(overrides=(), **plant_overrides):
+    """validate_config of the composed config with the plant node of conf/plant/mujoco.yaml (and overrides) added:
+    the CLI's validation, before a run."""
+    from hydra import compose, initialize_config_module
+    from omegaconf import OmegaConf
+
+    from ddmr_cli.config import validate_config
+
+    with initialize_config_module(config_module="ddmr_cli.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=list(overrides))
+    OmegaConf.set_struct(cfg, False)
+    cfg.plant = plant_config(**plant_overrides)
+    return validate_config(cfg)
+
+
+@pytest.mark.parametrize("overrides, plant_overrides, key, rule", [
+    ((), {"heightfield__resolution": 0.02, "heightfield__correlation_length": 0.1},
+     "plant.heightfield.resolution=0.02", "too coarse for the wheel radius"),
+    (("terrain.zones.slightly_rough.start=17.5",), {}, "terrain.zones.slightly_rough.start=17.5",
+     "zone outside the heightfield"),
+    ((), {"timestep": 0.004}, "plant.timestep=0.004", "MuJoCo cannot hold the contacts stable"),
+    ((), {"caster__stiffness": 2e6}, "plant.timestep=0.001", "MuJoCo cannot hold the caster springs stable"),
+    (("simulation.duration=17",), {}, "plant.heightfield.x_max=17.0", "the reference leaves the field"),
+    (("trajectory=circle",), {}, "plant.heightfield.x_min=-1.0", "the reference leaves the field"),
+    (("trajectory.y0=0.9",), {}, "plant.heightfield.half_width=1.0", "the reference leaves the field"),
+    (("scenario=paper_2", "scenario.phase_clock=time"), {}, "scenario.phase_clock='time'", "ground is a place"),
+])
+def test_config_validation_refuses_what_the_plant_cannot_run(overrides, plant_overrides, key, rule):
+    """The checks run in the CLI's validation (ddmr_cli.config.validate.check_plant), before any run: one line."""
+    _assert_one_line(lambda: _validated(overrides, **plant_overrides), key, rule)
+
+
+def test_config_validation_passes_the_shipped_plant_and_names_the_missing_extra(monkeypatch):
+    _validated()  # conf/plant/mujoco.yaml with the default config: valid
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "mujoco" else real(name, *a))
+    with pytest.raises(ConfigError) as info:
+        _validated()
     assert str(info.value) == 'plant=\'mujoco\': needs MuJoCo, the optional extra: pip install -e ".[physics]"'
 
 
@@ -203,6 +291,29 @@ def test_same_seed_same_ground_and_the_roughness_mapping():
         assert slope.std() == pytest.approx(target_slope, rel=0.35)
 
 
+def test_scenario_2s_roughness_off_phase_is_flat_ground_and_the_rest_the_same_ground():
+    """Scenario 2 turns the roughness off over [5, 10) m travelled: on the physics plant that stretch is flat ground
+    (rolling friction kept), and the rest is scenario 1's ground of the same seed. A time clock cannot place it."""
+    from ddmr_cli.config.presets import paper_scenario
+
+    one, two = make(), MujocoPlant(robot(), terrain("paper"), plant_config(), DT, paper_scenario(2))
+    h1, h2 = one.heights(4), two.heights(4)
+    x, _ = one.field_axes()
+    off, before, after = (x >= 5.1) & (x < 10.0), x < 5.0, x >= 10.1  # past the 0.1 m ramps
+    print(f"height SD on [5.1, 10) m: scenario 1 {h1[:, off].std() * 1e3:.3f} mm, scenario 2 {h2[:, off].std():.1e} m")
+    assert np.abs(h2[:, off]).max() == 0.0 and h1[:, off].std() > 5e-3
+    assert np.array_equal(h2[:, before], h1[:, before])
+    assert np.allclose(h2[:, after], h1[:, after], rtol=1e-12, atol=0.0)
+    assert np.array_equal(two.heights(4), h2)
+    _assert_one_line(lambda: make_with(paper_scenario(2, "scenario.phase_clock=time")), "scenario.phase_clock='time'",
+                     "ground is a place")
+    make_with(paper_scenario(1, "scenario.phase_clock=time"))  # roughness never off: the clock does not matter
+
+
+def make_with(scenario):
+    return MujocoPlant(robot(), terrain("paper"), plant_config(), DT, scenario)
+
+
 def _run(plant, seeds, steps=300):
     n = len(seeds)
     plant.reset(np.asarray(seeds), np.column_stack([np.full(n, 5.2), np.zeros(n), np.zeros(n)]),
@@ -213,6 +324,8 @@ def _run(plant, seeds, steps=300):
         plant.step(rng.uniform(5.0, 15.0, (n, 2)), rng.uniform(0.8, 1.2, n))
         s = plant.state()
         out.append(np.column_stack([s["x"], s["y"], s["theta"], s["distance"], s["w"], plant.true_disturbance()]))
+    seconds = plant.timing()  # ddmr bench's share: the MuJoCo steps within the whole plant step
+    assert 0.0 < seconds["mujoco"] <= seconds["step"], seconds
     return np.array(out)
 
 
@@ -222,3 +335,13 @@ def test_runs_are_bit_identical_whatever_the_thread_count_on_very_rough_ground()
     for threads in (2, 3):
         assert np.array_equal(_run(make(threads=threads), seeds), one, equal_nan=True), threads
     assert np.isfinite(one).all() and np.abs(one[..., 6:]).max() > 10.0  # none diverged; the rough zone disturbs
+
+
+def test_ddmr_bench_times_the_plant_and_splits_the_wall_time():
+    """ddmr bench's section 6 (ddmr_cli/bench/physics.py): steps per second and the share in MuJoCo."""
+    from ddmr_cli.bench.physics import plant_throughput
+
+    r = plant_throughput(3, 0.05, threads=1)
+    print(f"{r.rate:,.0f} steps/s, MuJoCo {r.mujoco / r.wall:.0%}, plant {r.plant / r.wall:.0%}")
+    assert (r.runs, r.steps, r.threads, r.diverged) == (3, 50, 1, 0)
+    assert r.rate > 0 and 0 < r.mujoco and 0 <= r.plant and r.mujoco + r.plant <= r.wall

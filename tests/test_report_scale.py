@@ -215,7 +215,7 @@ def test_the_empty_steady_state_window_is_warned(tmp_path):
     jobs = [{"dir": c, "overrides": [f"controller={c}", "simulation.duration=2"]} for c in ("pid", "smc")]
     base = OmegaConf.merge(OmegaConf.create({"hydra": {"launcher": {"_target_": "basic", "n_jobs": 1}}}),
                            ddmr_cli.compose_config(jobs[0]["overrides"]))  # as Hydra composes it: with its node
-    warnings = _validate_jobs(jobs, base, True, ddmr_cli.compose_config)
+    warnings = _validate_jobs(jobs, base, True, ddmr_cli.compose_config).warnings
     assert len(warnings) == 1 and warnings[0].startswith("metrics.settle_time=3 s")  # once, not per job
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -37,4 +38,16 @@ def test_md_table_right_aligns_numbers_in_shared_exponent_form():
 
     table = md_table(["Controller", "slightly_rough (m)"], [["SMC", pm(0.00038, 0.00013)],
                                                             ["SMC-NDO", pm(2.25e-5, 0.94e-5)]])
-    assert table.splitlines()[1] == "| --- | ---: |"
+    lines = table.splitlines()
+    assert re.fullmatch(r"\|:-+\|-+:\|", lines[1])  # text left, numbers right
+    assert [c.strip() for c in lines[3].strip("|").split("|")] == ["SMC-NDO", "(2.25 ± 0.94)e-05"]
+
+
+def test_md_table_is_pandas_to_markdown_with_the_cells_as_given():
+    from ddmr_cli.report.tables import md_table
+
+    table = md_table(["Controller", "Runs", "Note"], [["pid", "050", "a|b"], ["smc", "1e3", "two\nlines"]])
+    assert table.splitlines() == ["| Controller   |   Runs | Note      |",
+                                  "|:-------------|-------:|:----------|",
+                                  "| pid          |    050 | a\\|b      |",
+                                  "| smc          |    1e3 | two lines |"]

@@ -304,3 +304,38 @@ def test_every_other_controller_is_a_baseline_judged_against_smc_ndo_nno():
     md = V.markdown(data, V.evaluate(data))
     assert "SMC-NDO-NNO: less chattering (total variation of u) than STA-NDO (not a paper claim)" in md
     assert "SMC-NDO-NNO: lower deviation MAE than ADRC" in md
+
+
+def test_the_claims_on_both_plants_stand_side_by_side_and_the_changes_are_named():
+    """Jobs on plant=mujoco (their saved config's plant.name) are scenario `paper_1@mujoco`; the report lists each
+    claim's verdict on both plants and names the claims that change (docs/model.md §13)."""
+    from ddmr_cli.report import verdicts as V
+    from ddmr_cli.report.data import Job
+
+    wheel = make_data({"pid": base(18.7), "smc": base(5.2), "smc_ndo": base(3.2),
+                       "smc_ndo_nno": base(1.9, chat=1.0, hf=0.005, dest=6.6)})
+    physics = make_data({"pid": base(18.7), "smc": base(5.2), "smc_ndo": base(3.2),
+                         "smc_ndo_nno": base(3.21, chat=1.0, hf=0.005, dest=6.6)}, seed=1)
+    for job in physics.jobs:  # the same controllers on the physics plant, in their own job dirs
+        job.dir, job.config = Path(f"/nowhere/mujoco/{job.controller}-mujoco"), {"plant": {"name": "mujoco"}}
+    physics.metrics["job"] = physics.metrics["job"] + "-mujoco"
+    wheel.jobs += physics.jobs
+    wheel.metrics = pd.concat([wheel.metrics, physics.metrics], ignore_index=True)
+    assert [j.scenario for j in wheel.jobs] == ["paper_1"] * 4 + ["paper_1@mujoco"] * 4
+    assert wheel.plant_pairs() == [("paper_1", "paper_1@mujoco", "mujoco")]
+    res = by_id(V.evaluate(wheel))
+    assert category(res["vs_smc_ndo"].overall[("paper_1", "smc_ndo_nno")]) == HOLDS
+    assert category(res["vs_smc_ndo"].overall[("paper_1@mujoco", "smc_ndo_nno")]) == FAILS
+    assert category(res["chattering"].overall[("paper_1@mujoco", "smc_ndo_nno")]) == HOLDS
+    text = "\n".join(V.plant_comparison(wheel, list(res.values())))
+    print(text)
+    lines = text.splitlines()
+    assert lines[0] == "### The claims on both plants"
+    cells = [[c.strip() for c in line.strip().strip("|").split("|")] for line in lines if line.startswith("|")]
+    row = next(c for c in cells if c[0] == res['vs_smc_ndo'].title)
+    assert "mujoco" in row and row[-1] == "**changes**"
+    chat = next(c for c in cells if c[0] == res['chattering'].title)
+    assert chat[-1] == "same"
+    assert f"{res['vs_smc_ndo'].title} (paper_1, SMC-NDO-NNO: holds -> does not hold on mujoco)" in text
+    assert "### The claims on both plants" in V.markdown(wheel, list(res.values()))
+    assert V.plant_comparison(make_data({"smc_ndo": base(3.2), "smc_ndo_nno": base(1.9)}), []) == []  # one plant

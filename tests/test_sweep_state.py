@@ -65,13 +65,13 @@ def test_the_output_dir_is_resolved_once_and_pinned_for_hydra(tmp_path, monkeypa
     args = ["-m", "experiment_name=\"it's, odd\"", "run.n_runs=1"]
     launch = run.prepare(args, args[1:], multirun=True)
     assert launch.out_dir.parent == tmp_path.joinpath("outputs", "it's, odd").relative_to(tmp_path)
-    pinned = launch.argv[-1]
-    assert pinned.startswith("hydra.sweep.dir=") and launch.argv[:-1] == tuple(args)
+    pinned = launch.argv[-2]  # then this small sweep's launcher (in this process: cli/modes.py small_local_sweep)
+    assert pinned.startswith("hydra.sweep.dir=") and launch.argv == (*args, pinned, "launcher=basic")
     (parsed,) = OverridesParser.create().parse_overrides([pinned])
     assert not parsed.is_sweep_override() and parsed.value() == str(launch.out_dir)
     assert [job["overrides"] for job in launch.plan] == [args[1:]] and list(tmp_path.iterdir()) == []
     again = run.prepare([*args, "hydra.sweep.dir=elsewhere"], [*args[1:], "hydra.sweep.dir=elsewhere"], True)
-    assert again.argv[-1] == "hydra.sweep.dir=elsewhere" and again.argv.count("hydra.sweep.dir=elsewhere") == 1
+    assert again.argv[-2] == "hydra.sweep.dir=elsewhere" and again.argv.count("hydra.sweep.dir=elsewhere") == 1
 
 
 @pytest.mark.slow

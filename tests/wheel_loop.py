@@ -10,6 +10,7 @@ import numpy as np
 
 from ddmr_cli import NominalModel
 from ddmr_cli.model.robot import nominal_acceleration, saturate
+from ddmr_cli.control.base import ESTIMATE, SURFACE
 
 
 def nominal_plant(nominal: NominalModel, disturbance):
@@ -34,16 +35,19 @@ def wheel_loop(controller, nominal: NominalModel, acceleration, w0, w_d, duratio
     w_R, w_L = float(w0[0]), float(w0[1])
     laws.start(p, records[0], w_R, w_L)
     for k in range(n):
-        uc_R, uc_L, s_R, s_L, dn_R, dn_L, nn_R, nn_L = laws.command(p, records[0], k, w_R, w_L, w_d[0], w_d[1],
-                                                                    0.0, 0.0)
+        uc_R, uc_L = laws.command(p, records[0], k, w_R, w_L, w_d[0], w_d[1], 0.0, 0.0)
         u_R, sat_R = saturate(uc_R, max_voltage)
         u_L, sat_L = saturate(uc_L, max_voltage)
         if hasattr(laws, "estimates"):  # estimates reported under the applied voltage (ADRC's)
-            dn_R, dn_L, nn_R, nn_L = laws.estimates(p, records[0], w_R, w_L, u_R, u_L, dn_R, dn_L, nn_R, nn_L)
+            laws.estimates(p, records[0], w_R, w_L, u_R, u_L)
         a_R, a_L = acceleration(k * dt, w_R, w_L, u_R, u_L)
         laws.update(p, records[0], w_R, w_L, w_d[0], w_d[1], u_R, u_L, uc_R, uc_L, sat_R, sat_L)
         out["w"][k], out["u"][k], out["u_command"][k] = (w_R, w_L), (u_R, u_L), (uc_R, uc_L)
-        out["s"][k], out["d_hat"][k] = (s_R, s_L), (dn_R + nn_R, dn_L + nn_L)
+        # the controller's diagnostic channels: the surface, and the sum of its estimates of d
+        diagnostics, channels = records[0]["diagnostics"], controller.diagnostics()
+        surface = [c for c, ch in enumerate(channels) if ch.kind == SURFACE]
+        out["s"][k] = diagnostics[surface[0]] if surface else (np.nan, np.nan)
+        out["d_hat"][k] = sum((diagnostics[c] for c, ch in enumerate(channels) if ch.kind == ESTIMATE), np.zeros(2))
         for name in state:
             out[name][k] = records[0][name]
         w_R, w_L = w_R + dt * a_R, w_L + dt * a_L

@@ -49,7 +49,7 @@ def control_steps(start, command, update, p, state, w, wd, wdd):
     start(p, st, w[0, 0], w[0, 1])
     total = 0.0
     for i in range(w.shape[0]):
-        u_R, u_L, s_R, s_L, a, b, c, d = command(p, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
+        u_R, u_L = command(p, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
         update(p, st, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], u_R, u_L, u_R, u_L, False, False)
         total += u_R + u_L
     return total
@@ -162,7 +162,7 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
         for key in counts:
             counts[key] = 0
         for i in range(n):
-            u_R, u_L, *_ = laws.command(params, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
+            u_R, u_L = laws.command(params, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
             laws.update(params, st, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], u_R, u_L, u_R, u_L, False, False)
     finally:
         for m in modules:

@@ -75,6 +75,23 @@ def run_help(overrides: list[str], config_name: str = "config") -> int:
     return 0
 
 
+def explain_topics(prefix: str) -> list[str]:
+    """What ``ddmr explain`` can explain that starts with ``prefix`` (tab completion): the config groups and every
+    key of the default config; for ``<group>.``, the keys of every option of that group (``controller.kp``)."""
+    from ddmr_cli.config import compose_config, config_groups, group_options, iter_keys
+
+    groups = config_groups()
+    topics = [*groups, *iter_keys(compose_config([]))]
+    group = prefix.split(".", 1)[0]
+    if "." in prefix and group in groups:
+        for option in group_options(group):
+            try:
+                topics += iter_keys(compose_config([f"{group}={option}"]))
+            except Exception:  # noqa: BLE001 - an option that does not compose alone offers no keys
+                continue
+    return sorted({t for t in topics if t.startswith(prefix)})
+
+
 def cmd_explain(argv: list[str]) -> int:
     """``ddmr explain KEY [OVERRIDES...]``: one key's meaning, unit, value, valid range and model reference."""
     import difflib
@@ -123,6 +140,13 @@ def cmd_explain(argv: list[str]) -> int:
         print(f"  {label} {_fmt_value(doc.value)}  ({note})")
     print(f"  range:   {doc.range or '-'}")
     print(f"  see:     {doc.reference}")
+    if doc.model:
+        from importlib.resources import as_file
+
+        from ddmr_cli.config import model_doc
+
+        with as_file(model_doc()) as path:  # a file of the installed package (a wheel install too)
+            print(f"  read:    {path}")
     if composed_from:
         print(f"  note:    not a key of the composed {key.split('.')[0]}={default_choice}; "
               f"set it with {composed_from} (e.g. ddmr run {composed_from} {key}=...)")
@@ -138,4 +162,4 @@ def cmd_explain(argv: list[str]) -> int:
     return 0
 
 
-__all__ = ["run_help", "cmd_explain", "key_table"]
+__all__ = ["explain_topics", "run_help", "cmd_explain", "key_table"]

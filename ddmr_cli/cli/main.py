@@ -71,16 +71,40 @@ def cmd_bench(argv: list[str]) -> int:
     return bench_main(argv)
 
 
+#: the subcommands, in the order ``ddmr --help`` lists them (tab completion offers them too)
+COMMANDS = ("run", "explain", "report", "bench", "sensitivity")
+#: what a word after ``ddmr`` may also be
+TOP_FLAGS = ("--help", "--version")
+
+
 def _complete(argv: list[str]) -> int:
-    """Answer a shell-completion query for ``ddmr run ...``: Hydra completes the words after ``run``."""
+    """Answer a shell-completion query (``ddmr -sc query=bash``, asked by the script ``ddmr run -sc install=bash``
+    installs; the line so far in ``COMP_LINE``, the cursor in ``COMP_POINT``).
+
+    The first word: the subcommands. After ``run`` and ``sensitivity``: Hydra completes the overrides (groups,
+    options, keys). After ``explain``: its topics (:func:`~ddmr_cli.cli.help.explain_topics`), then Hydra for the
+    overrides. After ``report`` and ``bench``: nothing, so the shell offers paths (the script's ``-o default``)."""
     import os
 
     line = os.environ.get("COMP_LINE", "")
-    words = line.split(" ")
-    if len(words) > 1 and words[1] == "run":
-        os.environ["COMP_LINE"] = " ".join([words[0], *words[2:]])
-        point = int(os.environ.get("COMP_POINT", len(line)))
-        os.environ["COMP_POINT"] = str(max(0, point - len("run ")))
+    point = int(os.environ.get("COMP_POINT", len(line)))
+    words = line[:point].split(" ")
+    sep = " " if "query=bash" in argv else "\n"
+    if len(words) <= 2:
+        print(sep.join(w for w in (*COMMANDS, *TOP_FLAGS) if w.startswith(words[-1])))
+        return 0
+    command = words[1]
+    if command == "explain" and len(words) == 3:
+        from ddmr_cli.cli.help import explain_topics
+
+        print(sep.join(explain_topics(words[2])))
+        return 0
+    if command not in ("run", "sensitivity", "explain"):
+        return 0
+    skip = words[:3] if command == "explain" else words[:2]  # Hydra sees `ddmr OVERRIDES...`
+    cut = len(" ".join(skip)) + 1
+    os.environ["COMP_LINE"] = words[0] + " " + line[cut:]
+    os.environ["COMP_POINT"] = str(max(0, point - cut + len(words[0]) + 1))
     return cmd_run(argv)
 
 
@@ -97,8 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[0] in ("-sc", "--shell-completion"):  # the installed completion script asks `ddmr -sc query=...`
         return _complete(argv)
     command, rest = argv[0], argv[1:]
-    commands = {"run": cmd_run, "explain": cmd_explain, "report": cmd_report, "bench": cmd_bench,
-                "sensitivity": cmd_sensitivity}
+    commands = dict(zip(COMMANDS, (cmd_run, cmd_explain, cmd_report, cmd_bench, cmd_sensitivity)))
     if command not in commands:
         return fail(f"unknown command {command!r}; available: {', '.join(commands)} (ddmr --help)")
     logging.getLogger("matplotlib").setLevel(logging.WARNING)

@@ -22,7 +22,7 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, ClassVar, Sequence
+from typing import Callable, ClassVar, NamedTuple, Sequence
 
 from omegaconf import DictConfig
 
@@ -40,6 +40,15 @@ class Plan:
     session: list[str]
 
 
+class Validated(NamedTuple):
+    """What :func:`_validate_jobs` found besides the refusals it raises."""
+
+    #: the simulated run-steps of all the jobs (``run.n_runs`` times the steps of each)
+    work: int
+    #: one-line warnings, each once (an empty steady-state window)
+    warnings: tuple[str, ...]
+
+
 class Mode:
     """What ``ddmr run`` launches (see the module docstring)."""
 
@@ -47,6 +56,8 @@ class Mode:
     multirun: ClassVar[bool] = True
     #: the kind of lock the output dir is held with (:class:`ddmr_cli.storage.jobdir.DirLock`)
     lock_kind: ClassVar[str] = "sweep"
+    #: :meth:`watch` draws a bar over the jobs (Hydra's INFO lines are then kept off the terminal)
+    draws_bar: ClassVar[bool] = False
 
     def plan(self, base: DictConfig, overrides: list[str], parsed, compose: Callable[[list[str]], DictConfig]) -> Plan:
         """The jobs and the session's overrides, every job composed and validated (raises ConfigError)."""
@@ -67,19 +78,28 @@ class Mode:
         """The exit status, read from the output dir as it is on disk."""
         raise NotImplementedError
 
+    def watch(self, out_dir: Path, jobs: Sequence[dict], enabled: bool):
+        """A context manager that shows the launch's progress while Hydra runs (nothing by default)."""
+        import contextlib
+
+        return contextlib.nullcontext()
+
 
 def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: Callable[[list[str]], DictConfig]):
     """Compose and validate every job (the model is built: derived numbers fail here); then the memory budget
     of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
-    job's overrides. Returns the warnings (each once): an empty steady-state window."""
+    job's overrides. Returns the simulated run-steps in all and the warnings (each once): an empty steady-state
+    window."""
+    from ddmr_cli import progress
     from ddmr_cli.config import budget
     from ddmr_cli.config.validate import (check_additions, job_estimate, message, steady_state_warning,
                                           validate_config)
     from ddmr_cli.errors import ConfigError
 
-    largest = None
+    largest, work = None, 0
     warned: list[str] = []
-    for job in jobs:
+    shown = multirun and bool(base.run.get("progress", True))
+    for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown, leave=False):
         current = job["overrides"]
         try:
             cfg = compose(current) if multirun else base
@@ -95,11 +115,29 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
             warned.append(warning)
         est = job_estimate(cfg, sim)
         largest = est if largest is None or est.total > largest.total else largest
+        work += int(cfg.run.n_runs) * sim.n_steps
     if multirun and largest is not None:
         at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
                                  len(jobs))
         budget.check(largest, base.run.get("max_memory_gb"), at_once, (base.get("cluster") or {}).get("mem_gb"))
-    return tuple(warned)
+    return Validated(work, tuple(warned))
+
+
+#: a sweep on the default launcher (``launcher=local``, joblib) of at most this many jobs and this many simulated
+#: run-steps in all (a few seconds of one core) runs in this process on Hydra's basic launcher (``launcher=basic``):
+#: worker start-up and a kernel load per worker cost more than the parallel simulation saves. table4 (8 jobs,
+#: 6e6 run-steps), A/B over 5 pairs: 0.67x the CPU and 0.66x the wall time of the joblib launcher (issue 28).
+SMALL_SWEEP_JOBS = 16
+SMALL_SWEEP_RUN_STEPS = 20_000_000
+
+
+def small_local_sweep(base: DictConfig, parsed, n_jobs: int, work: int) -> bool:
+    """True when a sweep should run in this process (see :data:`SMALL_SWEEP_JOBS`): few jobs, little simulation,
+    and the launcher is the default one, neither chosen nor configured (``cluster.*``) on the command line."""
+    chosen = any(o.key_or_group.lstrip("+~") in ("launcher", "hydra/launcher")
+                 or o.key_or_group.lstrip("+~").startswith(("cluster.", "hydra.launcher.")) for o in parsed)
+    default = str((base.hydra.runtime.get("choices") or {}).get("launcher")) == "local"
+    return not chosen and default and n_jobs <= SMALL_SWEEP_JOBS and work <= SMALL_SWEEP_RUN_STEPS
 
 
 class SingleRun(Mode):
@@ -110,7 +148,7 @@ class SingleRun(Mode):
 
     def plan(self, base, overrides, parsed, compose):
         jobs = [{"dir": "", "overrides": list(overrides)}]
-        self.warnings = _validate_jobs(jobs, base, False, compose)
+        self.warnings = _validate_jobs(jobs, base, False, compose).warnings
         return Plan(jobs, [])
 
     def preflight(self, out_dir, jobs):
@@ -129,6 +167,8 @@ class Sweep(Mode):
     """A sweep (``-m``): Hydra's sweeper expands the overrides into jobs; every job is composed and validated
     before anything is written, and none may write into another's dir or outside the sweep dir."""
 
+    draws_bar = True
+
     def plan(self, base, overrides, parsed, compose):
         from ddmr_cli.config.plan import plan_jobs
 
@@ -140,8 +180,12 @@ class Sweep(Mode):
         subdir = [o for o in overrides if o.startswith("hydra.sweep.subdir=")]
         _refuse_escapes(jobs, subdir)
         _refuse_shared_dirs(jobs, subdir)
-        self.warnings = _validate_jobs(jobs, base, True, compose)
-        return Plan(jobs, [])
+        # a small sweep's jobs are validated as Hydra's sweeper will compose them (launcher=basic last), so both
+        # share one composition per set of group choices; the launcher is left out of the job dirs' names and of
+        # the config hash: the same dirs, the same numbers
+        session = ["launcher=basic"] if small_local_sweep(base, parsed, len(jobs), 0) else []
+        work, self.warnings = _validate_jobs(jobs, base, True, lambda job: compose([*job, *session]))
+        return Plan(jobs, session if small_local_sweep(base, parsed, len(jobs), work) else [])
 
     def preflight(self, out_dir, jobs):
         from ddmr_cli.storage import jobdir, sweep
@@ -163,6 +207,13 @@ class Sweep(Mode):
         jobdir.clean_leftovers(out_dir, [job["dir"] for job in jobs])
         print(f"ddmr: sweep of {len(jobs)} jobs validated -> {out_dir}", file=sys.stderr)
         super().before_launch(out_dir, jobs)
+
+    def watch(self, out_dir, jobs, enabled):
+        """A bar over the jobs, advanced as their summaries appear (:class:`ddmr_cli.progress.SweepWatch`)."""
+        from ddmr_cli.progress import SweepWatch
+        from ddmr_cli.storage import io
+
+        return SweepWatch(out_dir, [job["dir"] for job in jobs], io.SUMMARY, enabled)
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.storage import sweep
@@ -248,4 +299,4 @@ def _refuse_escapes(plan: list[dict], subdir: list[str]) -> None:
                              f"hydra.sweep.subdir a relative path below it")
 
 
-__all__ = ["Mode", "Plan", "SingleRun", "Sweep", "TuningStudy", "CalibrationSearch", "mode_of"]
+__all__ = ["SMALL_SWEEP_JOBS", "SMALL_SWEEP_RUN_STEPS", "small_local_sweep", "Mode", "Plan", "SingleRun", "Sweep", "TuningStudy", "CalibrationSearch", "mode_of"]

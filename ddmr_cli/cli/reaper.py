@@ -9,7 +9,8 @@ trackers (multiprocessing's and loky's) carry the entry too but are left alone: 
 workers; they end by themselves when it does, after unlinking what it leaked, and a process that runs several
 sweeps (``ddmr sensitivity``) keeps using them. Killing them printed KeyError tracebacks from the relaunched
 tracker at every later stage.
-Inside a job, :func:`ddmr_cli.job._exit_with_parent` does the same for busy workers where /proc is missing.
+The processes and their environments are read with psutil. Inside a job, :func:`ddmr_cli.job._exit_with_parent`
+does the same for busy workers where another process's environment cannot be read.
 """
 
 from __future__ import annotations
@@ -21,30 +22,29 @@ import time
 
 
 #: a process whose command line holds this is a resource tracker, not a worker (module docstring)
-TRACKER = b"resource_tracker"
+TRACKER = "resource_tracker"
 
 
-def workers(mark: bytes, exclude: int) -> list[int]:
-    """Pids of the processes whose environment holds the entry ``mark``, resource trackers excepted."""
+def workers(mark: str, exclude: int) -> list[int]:
+    """Pids of the processes whose ``DDMR_PARENT`` is ``mark``, resource trackers excepted (processes whose
+    environment this user may not read are not this run's)."""
+    import psutil
+
     found = []
-    for name in os.listdir("/proc") if os.path.isdir("/proc") else []:
-        if not name.isdigit() or int(name) == exclude:
+    for proc in psutil.process_iter():
+        if proc.pid == exclude:
             continue
         try:
-            with open(f"/proc/{name}/environ", "rb") as fh:
-                if mark not in fh.read().split(b"\0"):
-                    continue
-            with open(f"/proc/{name}/cmdline", "rb") as fh:
-                if TRACKER not in fh.read():
-                    found.append(int(name))
-        except OSError:
+            if proc.environ().get("DDMR_PARENT") == mark and TRACKER not in " ".join(proc.cmdline()):
+                found.append(proc.pid)
+        except (psutil.Error, OSError):  # gone, a zombie, or another user's
             continue
     return found
 
 
 def reap(pid: int, host: str, grace: float = 2.0) -> list[int]:
     """End the workers of ``ddmr run`` ``pid`` on ``host``; returns their pids."""
-    mark = f"DDMR_PARENT={host}:{pid}".encode()
+    mark = f"{host}:{pid}"
     victims = workers(mark, os.getpid())
     for sig in (signal.SIGTERM, signal.SIGKILL):
         for victim in victims:

@@ -24,7 +24,7 @@ from ddmr_cli.workers import shutdown_joblib_workers
 @dataclass(frozen=True)
 class Launch:
     """What the CLI knows before Hydra starts: the mode, the output dir (pinned), the planned jobs, the report
-    setting."""
+    setting and ``run.progress``."""
 
     mode: Mode
     out_dir: Path
@@ -32,6 +32,7 @@ class Launch:
     plan: tuple[dict, ...] = ()
     report: bool = False
     margin: str | None = None
+    progress: bool = True
 
     @property
     def multirun(self) -> bool:
@@ -55,6 +56,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
     from ddmr_cli.config import JobComposer, compose_config
     from ddmr_cli.config.validate import message
     from ddmr_cli.errors import ConfigError
+    from ddmr_cli.progress import interactive, quiet_sweep_logging
     from ddmr_cli.report.stats import Margin
 
     extra = [f"hydra.searchpath=[{override_value('file://' + search_dir)}]"] if search_dir else []
@@ -82,9 +84,12 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
         raise UsageError(one_line(exc, overrides)) from None
     except (MemoryError, OverflowError) as exc:  # a value too large to plan
         raise UsageError(f"{' '.join(overrides)}: too large to plan ({type(exc).__name__}); lower the largest value")
+    shown = bool(base.run.get("progress", True))
+    quiet = quiet_sweep_logging(base.hydra) if mode.draws_bar and shown and interactive() else []
     pinned = [a for a in argv if a.partition("=")[0] != dir_key] + [f"{dir_key}={override_value(out_dir)}",
-                                                                    *plan.session]
-    return Launch(mode, out_dir, tuple(pinned), tuple(plan.jobs) if multirun else (), bool(base.report.auto), margin)
+                                                                    *plan.session, *quiet]
+    return Launch(mode, out_dir, tuple(pinned), tuple(plan.jobs) if multirun else (), bool(base.report.auto), margin,
+                  shown)
 
 
 #: the most jobs a sweep may plan (a Hydra sweep composes every job; a million would take hours to plan)
@@ -127,14 +132,17 @@ def cmd_run(argv: list[str]) -> int:
     if INFO_FLAGS & flags.keys():  # no job runs: Hydra prints what was asked for
         return hydra(argv, completing=bool({"-sc", "--shell-completion"} & flags.keys()))
     argv, config_dir, search_dir = config_dirs(argv)
-    try:
-        launch = prepare(argv, overrides, multirun, config_name, config_dir, search_dir)
-    except UsageError as exc:
-        return fail(str(exc))
-    except OSError as exc:  # a fault found while planning (an unreadable study storage): one line, exit 1
-        print(f"ddmr: error: {exc}", file=sys.stderr)
-        return EXIT_FAILED
-    return run_locked(launch)
+    from ddmr_cli.config.compose_once import compositions_once
+
+    with compositions_once():  # our validation, Hydra's get_mode and its run compose the config once (issue 28)
+        try:
+            launch = prepare(argv, overrides, multirun, config_name, config_dir, search_dir)
+        except UsageError as exc:
+            return fail(str(exc))
+        except OSError as exc:  # a fault found while planning (an unreadable study storage): one line, exit 1
+            print(f"ddmr: error: {exc}", file=sys.stderr)
+            return EXIT_FAILED
+        return run_locked(launch)
 
 
 def run_locked(launch: Launch) -> int:
@@ -152,7 +160,7 @@ def run_locked(launch: Launch) -> int:
             if launch.plan:  # jobs in worker processes: they end when we are gone
                 os.environ["DDMR_PARENT"] = f"{socket.gethostname()}:{os.getpid()}"
                 reaper = _start_reaper()
-            with _ctrl_c_to_this_process_only():
+            with _ctrl_c_to_this_process_only(), mode.watch(launch.out_dir, launch.plan, launch.progress):
                 code = hydra(list(launch.argv))
             return code or finish(launch)
     except jobdir.FaultError as exc:
@@ -173,7 +181,8 @@ def finish(launch: Launch) -> int:
 
     status = launch.mode.finish(launch.out_dir, launch.plan)
     if launch.report:
-        status = max(status, write_report(launch.out_dir, None, launch.margin, failure=EXIT_FAILED))
+        status = max(status, write_report(launch.out_dir, None, launch.margin, failure=EXIT_FAILED,
+                                          progress=launch.progress))
     return status
 
 

@@ -23,18 +23,6 @@ def fail(message: str) -> int:
     return EXIT_USAGE
 
 
-def _did_you_mean(cause, key: str) -> str:
-    """`` (did you mean run.n_runs?)`` for an unknown key of a schema node, from the node's fields; else ''."""
-    import dataclasses
-    import difflib
-
-    node_type, part = getattr(cause, "object_type", None), getattr(cause, "key", None)
-    if not (isinstance(part, str) and isinstance(node_type, type) and dataclasses.is_dataclass(node_type)):
-        return ""
-    close = difflib.get_close_matches(part, [f.name for f in dataclasses.fields(node_type)], n=1)
-    return f" (did you mean {key.rpartition('.')[0] + '.' if '.' in key else ''}{close[0]}?)" if close else ""
-
-
 def composition_error(exc: BaseException, overrides: list[str]) -> str:
     """One line for a composition error: the key, the value and what is wrong."""
     from hydra.errors import MissingConfigException, OverrideParseException
@@ -62,11 +50,23 @@ def composition_error(exc: BaseException, overrides: list[str]) -> str:
                      None)
         msg = str(getattr(cause, "msg", cause)).splitlines()[0]
         if isinstance(cause, (ConfigKeyError, ConfigAttributeError)) and "not in" in msg:
-            return f"{key}={value}: unknown key{_did_you_mean(cause, key)} ({msg})"
+            return f"{key}={value}: {_unknown(cause, key)}"
         return f"{key}={value}: {msg}" if value is not None else f"{key}: {msg}"
     if isinstance(exc, MissingConfigException):
         return str(exc).splitlines()[0]
     return " ".join(str(exc).split())
+
+
+def _unknown(cause, key: str) -> str:
+    """A key a schema does not have, with the closest key when one is close (as for ``+key=value``)."""
+    import dataclasses
+
+    from ddmr_cli.config.validate import unknown_key
+
+    kind = getattr(cause, "object_type", None)
+    fields = [f.name for f in dataclasses.fields(kind)] if dataclasses.is_dataclass(kind) else []
+    *parents, name = key.split(".")
+    return unknown_key(parents, name, fields)
 
 
 #: Hydra launcher plugins that come with an extra of this package: launcher config name -> extra

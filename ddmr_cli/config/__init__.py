@@ -16,20 +16,6 @@ from ddmr_cli.config.validate import kept_seeds, validate_config
 
 CONFIG_MODULE = "ddmr_cli.conf"
 MODEL_DOC = "docs/model.md"
-#: where the installed package carries docs/model.md (pyproject.toml ships it as package data)
-MODEL_DOC_PACKAGE = "ddmr_cli.docs"
-
-
-def model_section_title(number: int) -> str | None:
-    """The title of ``## <number>.`` in the shipped docs/model.md (None when the section or the file is missing)."""
-    from importlib import resources
-
-    try:
-        text = resources.files(MODEL_DOC_PACKAGE).joinpath("model.md").read_text(encoding="utf-8")
-    except (ModuleNotFoundError, FileNotFoundError, OSError):
-        return None
-    prefix = f"## {number}. "
-    return next((line[len(prefix):].strip() for line in text.splitlines() if line.startswith(prefix)), None)
 
 
 def _register_resolvers() -> None:
@@ -196,15 +182,33 @@ class KeyDoc:
     is_leaf: bool = True
 
     @property
+    def section(self) -> str:
+        """The title of the model section the key belongs to (``6. Controllers and observers``), or ''."""
+        return model_section(self.model) if self.model else ""
+
+    @property
     def reference(self) -> str:
-        """``docs/model.md §N`` (and the paper's place), or a dash for run settings outside the model."""
-        parts = []
-        if self.model:
-            title = model_section_title(self.model)
-            parts.append(f"{MODEL_DOC} §{self.model}" + (f" ({title})" if title else ""))
+        """``docs/model.md §N (its title)`` (and the paper's place), or a dash for run settings outside the model."""
+        title = self.section.partition(". ")[2]
+        parts = [f"{MODEL_DOC} §{self.model}" + (f" ({title})" if title else "")] if self.model else []
         if self.paper:
             parts.append(f"paper {self.paper}")
         return "; ".join(parts) or "-"
+
+
+def model_doc():
+    """docs/model.md as shipped with the package (``ddmr_cli.docs``, a wheel install too): an
+    :mod:`importlib.resources` Traversable (``.read_text()``; ``importlib.resources.as_file`` for a path)."""
+    from importlib.resources import files
+
+    return files("ddmr_cli.docs").joinpath("model.md")
+
+
+def model_section(number: int) -> str:
+    """The heading of section ``number`` of docs/model.md (``6. Controllers and observers``), or ''."""
+    prefix = f"## {int(number)}. "
+    return next((line[3:].strip() for line in model_doc().read_text(encoding="utf-8").splitlines()
+                 if line.startswith(prefix)), "")
 
 
 def _fields(node_type) -> dict[str, dataclasses.Field]:
@@ -280,5 +284,5 @@ def key_docs(cfg: DictConfig) -> list[KeyDoc]:
     return [key_doc(cfg, key) for key in iter_keys(cfg)]
 
 
-__all__ = ["KeyDoc", "key_doc", "key_docs", "iter_keys", "compose_config", "JobComposer", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of",
+__all__ = ["KeyDoc", "model_doc", "model_section", "key_doc", "key_docs", "iter_keys", "compose_config", "JobComposer", "group_options", "run_config", "build_simulation", "validate_config", "config_hash", "seeds_of",
            "kept_seeds"]

@@ -73,18 +73,11 @@ def estimate(sim, n_runs: int, n_kept: int) -> Estimate:
 
 
 def available_bytes() -> int:
-    """Memory available to new processes: ``MemAvailable`` of /proc/meminfo, else free physical pages."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, AttributeError):
-        return 8 * 2**30
+    """Memory available to new processes: psutil's ``virtual_memory().available`` (on Linux ``MemAvailable`` of
+    /proc/meminfo; an estimate of the same on macOS and Windows)."""
+    import psutil
+
+    return int(psutil.virtual_memory().available)
 
 
 def budget_bytes(max_memory_gb, cluster_mem_gb=None) -> tuple[int, str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from types import MappingProxyType
 from typing import Any
 
 from hydra.errors import InstantiationException
@@ -28,13 +29,38 @@ NON_RESULT_KEYS = ("run.plots", "run.progress", "run.threads", "run.max_memory_g
                    "report", "tags")
 
 
+#: Where a class of the user's own package may be instantiated (docs/extending.md: a controller in a module on the
+#: user's PYTHONPATH, its YAML in a ``--config-dir``): path -> (module, base class) it must subclass.
+USER_TARGETS = MappingProxyType({"controller": ("ddmr_cli.control.base", "WheelController")})
+
+
 def check_targets(node: Any, path: str) -> None:
+    """Refuse a ``_target_`` outside the project's classes (ConfigError naming the key), unless it is at a path of
+    :data:`USER_TARGETS` and names a subclass of that path's base class (a user's controller)."""
     if isinstance(node, DictConfig):
         target = node.get("_target_") if "_target_" in node.keys() else None
-        if target is not None and not str(target).startswith(ALLOWED_TARGET_PREFIX):
-            raise ConfigError(f"{path}._target_", target, f"only {ALLOWED_TARGET_PREFIX}* classes may be instantiated")
+        if target is not None and not str(target).startswith(ALLOWED_TARGET_PREFIX) and not _user_class(path, target):
+            raise ConfigError(f"{path}._target_", target, f"only {ALLOWED_TARGET_PREFIX}* classes may be instantiated"
+                              + (f", or a subclass of {'.'.join(USER_TARGETS[path])}" if path in USER_TARGETS else ""))
         for key in node:
             check_targets(node[key], f"{path}.{key}")
+
+
+def _user_class(path: str, target: Any) -> bool:
+    """True when ``target`` at ``path`` names a subclass of the base :data:`USER_TARGETS` gives for the path."""
+    import importlib
+
+    from ddmr_cli.compat import locate
+
+    if path not in USER_TARGETS:
+        return False
+    try:
+        cls = locate(str(target))
+    except Exception as exc:  # noqa: BLE001  (Hydra wraps import errors of any kind)
+        raise ConfigError(f"{path}._target_", target, f"cannot be imported ({type(exc).__name__}); is its module on "
+                                                      f"PYTHONPATH?") from None
+    module, base = USER_TARGETS[path]
+    return isinstance(cls, type) and issubclass(cls, getattr(importlib.import_module(module), base))
 
 
 def instantiate_checked(node: DictConfig, path: str):

@@ -14,12 +14,19 @@ with this shortcut in :meth:`~SweepConfigLoader.load_sweep_config`, the call by 
 every job and its launchers (joblib, submitit, Ray) compose each job; :class:`ddmr_cli.config.JobComposer`
 uses the same rule for the CLI's own validation of every job. tests/test_config.py compares both with a full
 composition, ``hydra`` node included, for every kind of override.
+
+:class:`CompositionMemo` is the same idea for the few whole compositions of one ``ddmr run`` process: the CLI's
+validation, Hydra's ``get_mode`` and Hydra's run (or multirun) compose the same config name and overrides, the
+last two with values of the ``hydra`` node added at the end (``hydra.run.dir=...``, ``hydra.mode=RUN``); with
+the memo (:func:`compositions_once`) the first call composes and the others copy its result and
+apply their added values as Hydra would (issue 28: a single run composed three times).
 """
 
 from __future__ import annotations
 
+import contextlib
 import pickle
-from typing import Callable, Sequence
+from typing import Callable, Iterator, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -96,6 +103,15 @@ class SweepConfigLoader:
         self._skeletons = Skeletons()
         self._groups: dict[str, bool] = {}
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickled in a launcher's worker, before the job restores Hydra's state (``Singleton.set_state``, which
+        scans every ``hydra_plugins`` module again): the scan is made once per worker process
+        (:func:`ddmr_cli.compat.cache_plugin_scan`)."""
+        from ddmr_cli.compat import cache_plugin_scan
+
+        self.__dict__.update(state)
+        cache_plugin_scan()
+
     def __getattr__(self, name: str):  # load_configuration, get_search_path, get_sources, list_groups, ...
         if name == "inner":  # not set yet (unpickling)
             raise AttributeError(name)
@@ -130,4 +146,72 @@ class SweepConfigLoader:
         return cfg
 
 
-__all__ = ["OverrideParser", "Skeletons", "SweepConfigLoader", "split_overrides"]
+def _hydra_value(o) -> bool:
+    """An override that sets a value of the ``hydra`` node (``hydra.run.dir=x``, ``hydra.mode=RUN``): applied
+    after the defaults tree, like a job's values; not a group choice (``hydra/launcher=joblib``), not the search
+    path, not a sweep, delete or dict merge."""
+    key = o.key_or_group
+    return (o.package is None and key.startswith("hydra.") and key != "hydra.searchpath" and not o.is_delete()
+            and not o.is_sweep_override() and not isinstance(o.value(), dict))
+
+
+class CompositionMemo(OverrideParser):
+    """Whole compositions of one process, each kept pickled, by (config name, search path, working dir) and the
+    overrides that are not values of the ``hydra`` node (see the module docstring).
+
+    A composition is made without the call's values of the ``hydra`` node (``hydra.run.dir=...``,
+    ``hydra.mode=RUN``); each call gets a copy with its own applied, in their order, as Hydra's loader applies
+    them after the defaults tree (they set keys of the ``hydra`` node only, which no other override sets), and
+    ``hydra.overrides.hydra`` as Hydra records it; its sweep overrides are checked as Hydra checks them. A
+    composition made for a multirun (Hydra skips missing defaults there) serves only multirun calls; one made for
+    a run serves both."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._kept: dict[tuple, tuple[bool, bytes, bool]] = {}
+
+    def load(self, loader, compose: Callable[..., DictConfig], config_name, overrides: Sequence[str], run_mode,
+             from_shell: bool = True, validate_sweep_overrides: bool = True) -> DictConfig:
+        """``loader.load_configuration(...)``, composed by ``compose`` (the loader's own method) only when no
+        kept composition serves the call."""
+        import os
+
+        from hydra.core.utils import JobRuntime
+        from hydra.types import RunMode
+
+        from ddmr_cli.compat import apply_overrides, check_sweep_overrides
+
+        parsed = self.parse(list(overrides))
+        core = tuple(o.input_line for o in parsed if not _hydra_value(o))
+        key = (config_name, tuple((e.provider, e.path) for e in loader.get_search_path().get_path()), os.getcwd(),
+               core)
+        multirun = run_mode == RunMode.MULTIRUN
+        kept = self._kept.get(key)
+        if kept is None or (kept[0] and not multirun):
+            cfg = compose(config_name=config_name, overrides=list(core), run_mode=run_mode, from_shell=from_shell,
+                          validate_sweep_overrides=validate_sweep_overrides)
+            derived = str(cfg.hydra.job.get("name")) == str(JobRuntime().get("name"))
+            kept = self._kept[key] = (multirun, pickle.dumps(cfg, protocol=pickle.HIGHEST_PROTOCOL), derived)
+        elif validate_sweep_overrides:
+            check_sweep_overrides(parsed, run_mode, from_shell)
+        _, blob, derived_name = kept
+        cfg = pickle.loads(blob)
+        apply_overrides([o for o in parsed if _hydra_value(o)], cfg)
+        cfg.hydra.overrides.hydra = [o.input_line for o in parsed if o.is_hydra_override()]
+        if derived_name:  # Hydra names the job after the program composing it, unless the config names it
+            cfg.hydra.job.name = JobRuntime().get("name")
+        return cfg
+
+
+@contextlib.contextmanager
+def compositions_once() -> Iterator[CompositionMemo]:
+    """Within the context, every whole composition of this process goes through one :class:`CompositionMemo`
+    (:func:`ddmr_cli.compat.loading_through`). Yields the memo."""
+    from ddmr_cli.compat import loading_through
+
+    memo = CompositionMemo()
+    with loading_through(memo.load):
+        yield memo
+
+
+__all__ = ["compositions_once", "CompositionMemo", "OverrideParser", "Skeletons", "SweepConfigLoader", "split_overrides"]

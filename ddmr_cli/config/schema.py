@@ -31,7 +31,8 @@ def param(default: Any = MISSING, *, unit: str, help: str, range: str = "", mode
     return field(default=default, metadata=metadata)
 
 
-TARGET_HELP = "class instantiated from this node (only ddmr_cli.* classes are allowed)"
+TARGET_HELP = ("class instantiated from this node (ddmr_cli.* classes; for controller also a WheelController "
+               "subclass of the user's own module on PYTHONPATH, docs/extending.md)")
 PER_WHEEL = "a number or a [right, left] pair"
 
 

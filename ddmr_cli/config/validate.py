@@ -20,14 +20,14 @@ import difflib
 import math
 import re
 from types import MappingProxyType
-from typing import Any, Iterable, Iterator
+from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.checks import integer, positive
 from ddmr_cli.config import budget
-from ddmr_cli.config.build import build_simulation, check_targets
+from ddmr_cli.config.build import USER_TARGETS, build_simulation, check_targets
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.config import display
 
@@ -36,7 +36,7 @@ KEEP_FORMS = "a list of seeds, first:N (the job's first N seeds), all or none"
 #: config nodes that instantiate a class -> the base class (module, name) their _target_ must be or extend;
 #: a trajectory is any class of ddmr_cli.model.trajectory (a protocol, no base class)
 TARGET_BASES = MappingProxyType({
-    "controller": ("ddmr_cli.control.base", "WheelController"),
+    "controller": USER_TARGETS["controller"],  # the one definition of a controller's base class
     "controller.ndo": ("ddmr_cli.control.ndo", "NonlinearDisturbanceObserver"),
     "controller.nn": ("ddmr_cli.control.rbf", "RBFNetworkObserver"),
     "trajectory": ("ddmr_cli.model.trajectory", None),
@@ -191,6 +191,15 @@ def _free_form(cfg: DictConfig) -> list[str]:
     return out
 
 
+def unknown_key(parents: Sequence[str], name: str, fields: Iterable[str]) -> str:
+    """``unknown key run.nruns (did you mean run.n_runs?); run has no key 'nruns'``: the key ``parents.name``
+    that a schema with ``fields`` does not have, with the closest field when one is close (difflib)."""
+    close = difflib.get_close_matches(name, list(fields), n=1)
+    hint = f" (did you mean {'.'.join([*parents, close[0]])}?)" if close else ""
+    return (f"unknown key {'.'.join([*parents, name])}{hint}; {'.'.join(parents) or 'the config'} has no key "
+            f"{name!r}")
+
+
 def check_additions(cfg: DictConfig, overrides: Iterable[str], groups: Iterable[str] = ()) -> None:
     """Refuse ``+key=value`` (and ``++``) that adds a key a schema does not have (``+run.nruns=5``): new keys
     are accepted only under a free-form dict (``tags.*``, ``terrain.zones.*``, ``scenario.phases.*``)."""
@@ -212,12 +221,9 @@ def check_additions(cfg: DictConfig, overrides: Iterable[str], groups: Iterable[
                 break  # a free-form dict (or a value): anything below it is the user's
             fields = [f.name for f in dataclasses.fields(node_type)]
             if part not in fields:
-                known = ".".join(parts[:i])
-                close = difflib.get_close_matches(part, fields, n=1)
-                hint = f" (did you mean {'.'.join([*parts[:i], close[0]])}?)" if close else ""
                 raise ConfigError(ov.input_line.partition("=")[0], ov.value(),
-                                  f"unknown key {key}{hint}; {known or 'the config'} has no key {part!r}. New keys "
-                                  f"are accepted only under a free-form dict: {', '.join(_free_form(cfg))}")
+                                  f"{unknown_key(parts[:i], part, fields)}. New keys are accepted only under a "
+                                  f"free-form dict: {', '.join(_free_form(cfg))}")
             node = node[part]
 
 
@@ -272,6 +278,23 @@ def check_derived(sim) -> None:
                           f"{float(sim.divergence_bound):g} m: every run would stop at once")
 
 
+def check_plant(cfg: DictConfig, sim) -> None:
+    """An external plant's own checks (``plant=mujoco``: :func:`ddmr_cli.plant.mujoco.validate`, the physics extra
+    installed, the heightfield fine enough for the wheel, the zones and the reference on the field, a timestep
+    MuJoCo holds stable); nothing for the wheel plant."""
+    plant = cfg.get("plant")
+    if plant is None or plant.get("name") != "mujoco":
+        return
+    from ddmr_cli.model.trajectory import reference_table
+    from ddmr_cli.plant import mujoco
+
+    # the reference every 10 ms over the run (the field's check needs the path, not every step)
+    stride = max(1, int(round(0.01 / float(sim.dt))))
+    table = reference_table(sim.trajectory, sim.n_steps // stride + 1, float(sim.dt) * stride)
+    mujoco.validate(sim.robot, sim.terrain, OmegaConf.to_container(plant, resolve=True), float(sim.dt), table[:, :2],
+                    sim.scenario)
+
+
 def message(exc: ConfigError, overrides: Iterable[str] = ()) -> str:
     """The one line of a ConfigError: ``key=value: rule``; when it names a whole section (a derived number,
     or a model part's check of several values), the overrides of that section stand for it."""
@@ -297,6 +320,7 @@ def validate_config(cfg: DictConfig):
     sim = build_simulation(cfg)
     sim.validate()
     check_derived(sim)
+    check_plant(cfg, sim)
     budget.check(job_estimate(cfg, sim, kept), cfg.run.get("max_memory_gb"),
                  cluster_mem_gb=(cfg.get("cluster") or {}).get("mem_gb"))
     return sim
@@ -320,5 +344,6 @@ def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.
     return budget.estimate(sim, int(cfg.run.n_runs), len(kept))
 
 
-__all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions",
-           "check_target_classes", "check_derived", "message", "job_estimate", "steady_state_warning", "DerivedError", "KEEP_FORMS"]
+__all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions", "unknown_key",
+           "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "steady_state_warning",
+           "DerivedError", "KEEP_FORMS"]

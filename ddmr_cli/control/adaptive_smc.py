@@ -55,9 +55,9 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     """SMC's states (error integral, NDO), then the gains, from this step's sliding variable."""
     smc.update(p.smc, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L)
     q = p.smc
-    st["gain"][0] = adapt(st["gain"][0], st["s"][0], p.adaptation_rate[0], p.leakage, p.dead_zone, p.gain_min,
+    st["gain"][0] = adapt(st["gain"][0], st["diagnostics"][0, 0], p.adaptation_rate[0], p.leakage, p.dead_zone, p.gain_min,
                           p.gain_max, q.dt)
-    st["gain"][1] = adapt(st["gain"][1], st["s"][1], p.adaptation_rate[1], p.leakage, p.dead_zone, p.gain_min,
+    st["gain"][1] = adapt(st["gain"][1], st["diagnostics"][0, 1], p.adaptation_rate[1], p.leakage, p.dead_zone, p.gain_min,
                           p.gain_max, q.dt)
 
 

@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 from ddmr_cli.checks import positive
 from ddmr_cli.compiled import law
-from ddmr_cli.control.base import STABILITY_LIMIT, StepRate, WheelController
+from ddmr_cli.control.base import ESTIMATE, STABILITY_LIMIT, SURFACE, Diagnostic, StepRate, WheelController
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel, nominal_acceleration, voltage_for
 
@@ -65,15 +65,16 @@ def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
     voltage: :func:`estimates`)."""
     u_R = (p.bandwidth * (wd_R - st["z1"][0]) + wdd_R - st["z2"][0]) * (1.0 / p.b0)
     u_L = (p.bandwidth * (wd_L - st["z1"][1]) + wdd_L - st["z2"][1]) * (1.0 / p.b0)
-    return u_R, u_L, wd_R - w_R, wd_L - w_L, 0.0, 0.0, 0.0, 0.0
+    st["diagnostics"][0, 0], st["diagnostics"][0, 1] = wd_R - w_R, wd_L - w_L
+    return u_R, u_L
 
 
 @law
-def estimates(p, st, w_R, w_L, u_R, u_L, ndo_R, ndo_L, nn_R, nn_L):
+def estimates(p, st, w_R, w_L, u_R, u_L):
     """The ESO's estimate of ``d``: the part of ``z2`` the nominal model does not explain under the applied
     voltage ``u`` (after the driver's limit and PWM, the ``u`` the ESO is fed), ``z2 - (f(w) + (g - b0) u)``."""
     f_R, f_L = total_disturbance(p.nominal, p.b0, w_R, w_L, u_R, u_L)
-    return st["z2"][0] - f_R, st["z2"][1] - f_L, 0.0, 0.0
+    st["diagnostics"][1, 0], st["diagnostics"][1, 1] = st["z2"][0] - f_R, st["z2"][1] - f_L
 
 
 @law
@@ -129,9 +130,10 @@ class ADRC(WheelController):
                                                    f"Euler ESO with controller.observer_bandwidth = "
                                                    f"{self.observer_bandwidth:.3g} 1/s")
 
-    def estimators(self) -> tuple[str, ...]:
-        """The ESO's z2 gives the estimate of d (:func:`estimates`)."""
-        return ("ESO",)
+    def diagnostics(self):
+        """The speed error (ADRC has no surface), then the ESO's estimate of d (:func:`estimates`)."""
+        return (Diagnostic("s", SURFACE, "the speed error w_d - w [rad/s] (no sliding surface)"),
+                Diagnostic("ESO", ESTIMATE, "the ESO's estimate of d, z2 - (f(w) + (g - b0) u) [rad/s^2]"))
 
     def parameters(self):
         return {"w_c": self.bandwidth, "w_o": self.observer_bandwidth, "b0": "diag(g) of the nominal model"}

@@ -1,24 +1,41 @@
 """What every wheel-speed controller is: a Python object holding its parameters, and a module of laws.
 
-The engine (:mod:`ddmr_cli.engine.stepper`) runs a controller through three laws that its module defines, per
+The engine (:mod:`ddmr_cli.engine.stepper`) runs a controller through the laws that its module defines, per
 run and step, on both wheels (right, left):
 
 ``start(p, st, w0_R, w0_L)``
     Set the run's state record ``st`` at the first step, given the initial wheel speeds [rad/s].
 ``command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L)``
-    At step ``k``, from the wheel speeds ``w``, their references ``w_d`` and ``w_d'``, return
-    ``(u_R, u_L, s_R, s_L, dndo_R, dndo_L, dnn_R, dnn_L)``: the unsaturated voltage [V], the sliding variable
-    (the speed error for controllers without a surface) [rad/s] and the disturbance estimates [rad/s^2] of an
-    NDO-like observer and of a learning observer (0 where the controller has none).
+    At step ``k``, from the wheel speeds ``w``, their references ``w_d`` and ``w_d'``, return the unsaturated
+    voltages ``(u_R, u_L)`` [V], and write the controller's diagnostic channels into ``st["diagnostics"]``.
+``estimates(p, st, w_R, w_L, u_R, u_L)`` (optional)
+    Given the applied voltage ``u`` (after the driver's limit and PWM), write the estimate channels that depend
+    on it (ADRC's ESO); a controller without it keeps what ``command`` wrote.
 ``update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L)``
     Advance the state by one step, given the applied voltage ``u``, the command ``uc`` and whether each wheel
     saturated.
+
+Diagnostic channels. A controller declares what it reports besides ``u`` (:meth:`WheelController.diagnostics`):
+a tuple of :class:`Diagnostic` (a name, a kind and a description). Row ``c`` of the ``(n, 2)`` array
+``st["diagnostics"]`` (the engine adds the field to the controller's state record) holds channel ``c``'s value
+for the right and left wheel, written by the laws at every control instant and held in between. The engine
+records, bands and sums the channels by kind, never by name (docs/model.md §6, "The controller contract"):
+
+``SURFACE``
+    The sliding variable (or, for a controller without a surface, the speed error ``w_d - w``) [rad/s]; at most
+    one. Recorded as ``s_right``/``s_left``, banded, and its mean ``|s|`` is the metric ``s_mae``.
+``ESTIMATE``
+    An estimate of the lumped disturbance d of (8) [rad/s^2] (an NDO, a learning observer, an ESO). Recorded as
+    ``d_hat_<name>_right``/``_left``; the estimation metrics compare the true d with the sum of a set of them
+    (:data:`ddmr_cli.engine.metrics.ESTIMATION_METRICS`).
+``SIGNAL``
+    Anything else worth a look (an adapted gain): recorded as ``<name>_right``/``_left`` only.
 
 The laws run at the control instants (every plant step unless ``control.rate`` is set; docs/model.md §10) on the
 measured wheel speeds, so their ``dt`` is the control period. ``p`` is the named tuple
 :meth:`WheelController.law_parameters` returns and ``st`` one record of the structured
 array whose fields :meth:`WheelController.state_fields` lists. Adding a controller is one module with a
-subclass and its three laws, plus a YAML file in ``conf/controller`` (see docs/extending.md): the engine,
+subclass and its laws, plus a YAML file in ``conf/controller`` (see docs/extending.md): the engine,
 the compile cache, determinism and validation come with it.
 """
 
@@ -34,6 +51,42 @@ from ddmr_cli.model.robot import NominalModel
 
 #: Largest stable ``dt * rate`` of a first-order mode under the plant's integrator (explicit Euler: 2, RK4: 2.78)
 STABILITY_LIMIT = {"euler": 2.0, "rk4": 2.78}
+
+
+#: kinds of diagnostic channel (see the module docstring)
+SURFACE, ESTIMATE, SIGNAL = "surface", "estimate", "signal"
+KINDS = (SURFACE, ESTIMATE, SIGNAL)
+#: the field of the state record that holds the diagnostic channels (added by the engine)
+DIAGNOSTICS_FIELD = "diagnostics"
+#: the series prefix of an ESTIMATE channel (``d_hat_<name lower-case>_right``/``_left``)
+ESTIMATE_PREFIX = "d_hat_"
+
+
+class Diagnostic(NamedTuple):
+    """One diagnostic channel a controller reports, per wheel (see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+        ``NDO``, ``NN``, ``ESO``, ``s``, ... (an estimate's series is ``d_hat_<name lower-case>_right``).
+    kind : {'surface', 'estimate', 'signal'}
+    description : str
+        What it is, with its unit.
+    """
+
+    name: str
+    kind: str
+    description: str
+
+
+def series_name(channel: Diagnostic) -> str:
+    """The series prefix a channel is recorded under: ``s`` for the surface, ``d_hat_<name>`` for an estimate, else
+    ``<name>`` (each followed by ``_right``/``_left``)."""
+    if channel.kind == SURFACE:
+        return "s"
+    if channel.kind == ESTIMATE:
+        return f"{ESTIMATE_PREFIX}{channel.name.lower()}"
+    return channel.name.lower()
 
 
 class StepRate(NamedTuple):
@@ -69,12 +122,14 @@ class WheelController:
         """The controller's parameters, for the report's Table 3."""
         return {}
 
+    def diagnostics(self) -> tuple[Diagnostic, ...]:
+        """The diagnostic channels the laws write into ``st["diagnostics"]``, in row order (none by default)."""
+        return ()
+
     def estimators(self) -> tuple[str, ...]:
-        """The disturbance estimators whose estimate of d the controller reports: its NDO and NN observers when it
-        has them (the ``ndo`` and ``nn`` attributes), none by default. Without one, d-hat is 0 and the estimation
-        MAE is only the mean |d|: the report leaves it out."""
-        return tuple(name for name, observer in (("NDO", getattr(self, "ndo", None)), ("NN", getattr(self, "nn", None)))
-                     if observer is not None)
+        """The names of the controller's :data:`ESTIMATE` channels, in row order. Without one, d-hat is 0 and the
+        estimation MAE is only the mean |d|: the report leaves it out."""
+        return tuple(c.name for c in self.diagnostics() if c.kind == ESTIMATE)
 
     def step_rates(self, nominal: NominalModel) -> list[StepRate]:
         """First-order rates of the controller's own loops that ``dt * rate`` must keep below the
@@ -90,8 +145,11 @@ class WheelController:
                                   f"must be < {limit / rate:.3g} s for {integrator} with {what} = {rate:.3g} 1/s")
 
     def initial_state(self, n_runs: int) -> np.ndarray:
-        """A zeroed state record per run (``start`` sets the initial values at the first step)."""
-        return np.zeros(n_runs, dtype=np.dtype(self.state_fields()))
+        """A zeroed state record per run (``start`` sets the initial values at the first step): the fields of
+        :meth:`state_fields` and the diagnostic channels, ``(max(1, n), 2)`` (one unused row when there are none)."""
+        rows = max(1, len(self.diagnostics()))
+        return np.zeros(n_runs, dtype=np.dtype(self.state_fields() + [(DIAGNOSTICS_FIELD, "f8", (rows, 2))]))
 
 
-__all__ = ["WheelController", "StepRate", "STABILITY_LIMIT"]
+__all__ = ["DIAGNOSTICS_FIELD", "Diagnostic", "ESTIMATE", "ESTIMATE_PREFIX", "KINDS", "SIGNAL", "STABILITY_LIMIT", "SURFACE", "StepRate",
+           "WheelController", "series_name"]

@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 from ddmr_cli.compiled import law
 from ddmr_cli.checks import compact, finite, per_wheel
-from ddmr_cli.control.base import WheelController
+from ddmr_cli.control.base import SURFACE, Diagnostic, WheelController
 from ddmr_cli.model.robot import NominalModel
 
 
@@ -22,8 +22,10 @@ def start(p, st, w0_R, w0_L):
 
 @law
 def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
-    """``u = (u_R, u_L)`` whatever the wheel speeds; ``s`` reports the speed error."""
-    return p.voltage[0], p.voltage[1], wd_R - w_R, wd_L - w_L, 0.0, 0.0, 0.0, 0.0
+    """``u = (u_R, u_L)`` whatever the wheel speeds; the surface channel reports the speed error."""
+    st["diagnostics"][0, 0] = wd_R - w_R
+    st["diagnostics"][0, 1] = wd_L - w_L
+    return p.voltage[0], p.voltage[1]
 
 
 @law
@@ -32,12 +34,11 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
 
 
 @law
-def estimates(p, st, w_R, w_L, u_R, u_L, ndo_R, ndo_L, nn_R, nn_L):
-    """The disturbance estimates reported at a control instant, given the applied voltage ``u`` (after the
-    driver's limit and PWM): by default what ``command`` returned. A controller whose estimate depends on the
-    applied voltage (ADRC's) defines its own; the step loop uses this one for every controller that does not
+def estimates(p, st, w_R, w_L, u_R, u_L):
+    """The estimate channels given the applied voltage ``u`` (after the driver's limit and PWM): by default
+    nothing changes (what ``command`` wrote stays). A controller whose estimate depends on the applied voltage
+    (ADRC's) defines its own; the step loop uses this one for every controller that does not
     (:mod:`ddmr_cli.engine.kernels`)."""
-    return ndo_R, ndo_L, nn_R, nn_L
 
 
 class OpenLoop(WheelController):
@@ -57,6 +58,9 @@ class OpenLoop(WheelController):
 
     def law_parameters(self, nominal: NominalModel, dt: float) -> OpenLoopParameters:
         return OpenLoopParameters(self.voltage)
+
+    def diagnostics(self):
+        return (Diagnostic("s", SURFACE, "the speed error w_d - w [rad/s] (no sliding surface)"),)
 
     def parameters(self):
         return {"voltage": compact(self.voltage)}

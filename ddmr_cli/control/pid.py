@@ -15,7 +15,7 @@ import numpy as np
 
 from ddmr_cli.compiled import law
 from ddmr_cli.checks import boolean, compact, per_wheel
-from ddmr_cli.control.base import WheelController
+from ddmr_cli.control.base import SURFACE, Diagnostic, WheelController
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel, sign
 
@@ -53,7 +53,9 @@ def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
     st["e_prev"][1] = e_L
     u_R = pid(p.kp[0], p.ki[0], p.kd[0], e_R, st["integral"][0], ed_R)
     u_L = pid(p.kp[1], p.ki[1], p.kd[1], e_L, st["integral"][1], ed_L)
-    return u_R, u_L, e_R, e_L, 0.0, 0.0, 0.0, 0.0
+    st["diagnostics"][0, 0] = e_R
+    st["diagnostics"][0, 1] = e_L
+    return u_R, u_L
 
 
 @law
@@ -110,6 +112,9 @@ class PID(WheelController):
 
     def state_fields(self):
         return [("integral", "f8", 2), ("e_prev", "f8", 2)]
+
+    def diagnostics(self):
+        return (Diagnostic("s", SURFACE, "the speed error w_d - w [rad/s] (no sliding surface)"),)
 
     def check_step(self, nominal: NominalModel, dt: float, integrator: str) -> None:
         """The sampled PD loop ``e_k+1 = (1 - dt g K_p - g K_d) e_k + g K_d e_k-1`` must be stable (docs/model.md

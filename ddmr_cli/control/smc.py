@@ -20,7 +20,7 @@ from typing import NamedTuple
 from ddmr_cli.compiled import law
 from ddmr_cli.control import ndo, rbf
 from ddmr_cli.checks import compact, non_negative, one_of, per_wheel, positive
-from ddmr_cli.control.base import StepRate, WheelController
+from ddmr_cli.control.base import ESTIMATE, SURFACE, Diagnostic, StepRate, WheelController
 from ddmr_cli.model.robot import NominalModel, sign, voltage_for
 
 SURFACES = ("proportional", "integral")
@@ -87,11 +87,14 @@ def sliding_command(p, st, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L, gain_R, gain_L):
     a_R = wdd_R + linear_R + gain_R * switching(s_R, p.boundary_layer, p.switching) - (dndo_R + dnn_R)
     a_L = wdd_L + linear_L + gain_L * switching(s_L, p.boundary_layer, p.switching) - (dndo_L + dnn_L)
     u_R, u_L = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
-    st["s"][0] = s_R
-    st["s"][1] = s_L
-    st["d_hat_ndo"][0] = dndo_R
-    st["d_hat_ndo"][1] = dndo_L
-    return u_R, u_L, s_R, s_L, dndo_R, dndo_L, dnn_R, dnn_L
+    diagnostics = st["diagnostics"]  # rows: s, then NDO and NN when present (SMC.diagnostics)
+    diagnostics[0, 0], diagnostics[0, 1] = s_R, s_L
+    if p.has_ndo:
+        diagnostics[1, 0], diagnostics[1, 1] = dndo_R, dndo_L
+    if p.has_nn:
+        nn_row = 2 if p.has_ndo else 1
+        diagnostics[nn_row, 0], diagnostics[nn_row, 1] = dnn_R, dnn_L
+    return u_R, u_L
 
 
 @law
@@ -106,10 +109,11 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     if p.integral_surface:
         st["error_integral"][0] += p.dt * (wd_R - w_R)
         st["error_integral"][1] += p.dt * (wd_L - w_L)
+    diagnostics = st["diagnostics"]
     if p.has_ndo:
-        ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["d_hat_ndo"][0], st["d_hat_ndo"][1], w_R, w_L, u_R, u_L)
+        ndo.update(p.ndo, p.nominal, p.dt, st["z"], diagnostics[1, 0], diagnostics[1, 1], w_R, w_L, u_R, u_L)
     if p.has_nn:
-        rbf.update(p.nn, p.dt, st["weights"], st["phi"], st["s"][0], st["s"][1])
+        rbf.update(p.nn, p.dt, st["weights"], st["phi"], diagnostics[0, 0], diagnostics[0, 1])
 
 
 class SMC(WheelController):
@@ -156,8 +160,15 @@ class SMC(WheelController):
 
     def state_fields(self):
         n = self.nn.n_neurons if self.nn is not None else 1
-        return [("error_integral", "f8", 2), ("z", "f8", 2), ("weights", "f8", (2, n)), ("phi", "f8", n),
-                ("s", "f8", 2), ("d_hat_ndo", "f8", 2)]
+        return [("error_integral", "f8", 2), ("z", "f8", 2), ("weights", "f8", (2, n)), ("phi", "f8", n)]
+
+    def diagnostics(self):
+        """The sliding variable, then the NDO's and the network's estimates of d when present (the rows
+        :func:`sliding_command` writes)."""
+        return ((Diagnostic("s", SURFACE, "the sliding variable s (10) [rad/s]"),)
+                + ((Diagnostic("NDO", ESTIMATE, "the NDO's estimate of d (21) [rad/s^2]"),) if self.ndo is not None else ())
+                + ((Diagnostic("NN", ESTIMATE, "the RBF network's estimate of d (24) [rad/s^2]"),)
+                   if self.nn is not None else ()))
 
     @property
     def largest_gain(self) -> float:

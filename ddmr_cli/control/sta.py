@@ -20,7 +20,7 @@ from ddmr_cli.checks import boolean, compact, per_wheel, positive
 from ddmr_cli.compiled import law
 from ddmr_cli.control import ndo
 from ddmr_cli.control.pid import integrand
-from ddmr_cli.control.base import StepRate, WheelController
+from ddmr_cli.control.base import ESTIMATE, SURFACE, Diagnostic, StepRate, WheelController
 from ddmr_cli.model.robot import NominalModel, sign, voltage_for
 
 
@@ -54,14 +54,15 @@ def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
     """``u = g^-1 (w_d' - f(w) + k1 |s|^(1/2) sign(s) + v - d_hat)`` per wheel, ``s = w_d - w``."""
     s_R, s_L = wd_R - w_R, wd_L - w_L
     dndo_R = dndo_L = 0.0
+    diagnostics = st["diagnostics"]  # rows: s, then NDO when present (SuperTwisting.diagnostics)
     if p.has_ndo:
         dndo_R, dndo_L = ndo.estimate(p.ndo, st["z"], w_R, w_L)
-    st["d_hat_ndo"][0] = dndo_R
-    st["d_hat_ndo"][1] = dndo_L
+        diagnostics[1, 0], diagnostics[1, 1] = dndo_R, dndo_L
+    diagnostics[0, 0], diagnostics[0, 1] = s_R, s_L
     a_R = wdd_R + super_twisting(s_R, p.k1[0], st["v"][0]) - dndo_R
     a_L = wdd_L + super_twisting(s_L, p.k1[1], st["v"][1]) - dndo_L
     u_R, u_L = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
-    return u_R, u_L, s_R, s_L, dndo_R, dndo_L, 0.0, 0.0
+    return u_R, u_L
 
 
 @law
@@ -70,7 +71,8 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     st["v"][0] += (p.dt * p.k2[0]) * integrand(sign(wd_R - w_R) * 1.0, uc_R, sat_R, p.anti_windup)
     st["v"][1] += (p.dt * p.k2[1]) * integrand(sign(wd_L - w_L) * 1.0, uc_L, sat_L, p.anti_windup)
     if p.has_ndo:
-        ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["d_hat_ndo"][0], st["d_hat_ndo"][1], w_R, w_L, u_R, u_L)
+        ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["diagnostics"][1, 0], st["diagnostics"][1, 1], w_R, w_L, u_R,
+                   u_L)
 
 
 class SuperTwisting(WheelController):
@@ -105,7 +107,12 @@ class SuperTwisting(WheelController):
         return STAParameters(self.k1, self.k2, self.anti_windup, nominal, float(dt), self.ndo is not None, ndo_params)
 
     def state_fields(self):
-        return [("v", "f8", 2), ("z", "f8", 2), ("d_hat_ndo", "f8", 2)]
+        return [("v", "f8", 2), ("z", "f8", 2)]
+
+    def diagnostics(self):
+        """The sliding variable ``s = w_d - w``, then the NDO's estimate of d when present."""
+        return ((Diagnostic("s", SURFACE, "the sliding variable s = w_d - w [rad/s]"),)
+                + ((Diagnostic("NDO", ESTIMATE, "the NDO's estimate of d (21) [rad/s^2]"),) if self.ndo is not None else ()))
 
     def step_rates(self, nominal: NominalModel) -> list[StepRate]:
         """Only the NDO's rate L: the super-twisting loop is homogeneous, with no linear rate for ``dt`` to resolve

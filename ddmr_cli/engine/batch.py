@@ -10,10 +10,9 @@ import numpy as np
 RUN_FIELDS = [("x", "f8"), ("y", "f8"), ("theta", "f8"), ("distance", "f8"), ("w", "f8", 2), ("w_d_prev", "f8", 2),
               ("noise", "f8", 3), ("divergence_step", "i8")]
 #: what the zero-order hold keeps between control instants (docs/model.md §10): the controller's command, the
-#: voltage it sent (saturated, PWM-quantised), whether it saturated (1/0: numba has no nested bool arrays), its sliding variable and estimates, and the
-#: wheel-speed references
-HOLD_FIELDS = [("u_command", "f8", 2), ("u_sent", "f8", 2), ("saturated", "i8", 2), ("s", "f8", 2),
-               ("d_ndo", "f8", 2), ("d_nn", "f8", 2), ("w_d", "f8", 2)]
+#: voltage it sent (saturated, PWM-quantised), whether it saturated (1/0: numba has no nested bool arrays) and the
+#: wheel-speed references (the controller's diagnostic channels are held in its own state record)
+HOLD_FIELDS = [("u_command", "f8", 2), ("u_sent", "f8", 2), ("saturated", "i8", 2), ("w_d", "f8", 2)]
 
 
 class World(NamedTuple):
@@ -46,3 +45,6 @@ class World(NamedTuple):
     control_dt: float  # the control period [s]
     sensor: object  # the sensor's SensorParameters (docs/model.md §10)
     actuator: object  # the actuator's ActuatorParameters
+    surface: int  # the row of the controller's SURFACE diagnostic channel (-1: none, s is NaN)
+    recorded: np.ndarray  # (n,) int64: the rows of the other diagnostic channels, recorded after the base series
+    estimation: np.ndarray  # (n_estimation_metrics, n_rows) int64: 1 where a channel's estimate counts in a metric

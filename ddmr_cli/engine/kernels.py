@@ -1,16 +1,18 @@
 """One compiled step loop per controller and call signature, made from the template :mod:`ddmr_cli.engine.stepper`.
 
 numba inlines the laws a compiled function calls, so the step loop must be compiled once per controller law
-module. Its copy for a controller is the template's source with the three imports of the controller's laws
-pointed at that controller's module, written to a cache directory and imported; numba caches the copy's compiled
+module. Its copy for a controller is the template's source with the four imports from the controller slot
+(:mod:`ddmr_cli.engine.controller_slot`, whose docstring shows them) pointed at that controller's module, written
+to a cache directory and imported; numba caches the copy's compiled
 code on disk beside it, and later processes load it instead of compiling. Without numba the same copy runs as
 Python.
 
 The copy's file name is its identity: a hash of everything it was compiled for (:func:`stepper_for`):
 
-- the source of every law module it can inline (compiled.py, model/, control/, engine/) and of the controller's
-  own module, which may live outside the package (a user's controller): numba's own cache does not notice an edit
-  in a callee's file;
+- the sources the copy inlines (:func:`inlined_sources`): the template's and the controller module's, and every
+  ``ddmr_cli`` module they import, transitively (the slot's default controller only where it is used); the
+  controller's module may live outside the package (a user's controller). numba's own cache does not notice an
+  edit in a callee's file; an edit in one controller's module recompiles that controller's loop only;
 - the complete type of every argument of the call (:func:`call_identity`): every record layout it touches (the
   run record with the sensor's and the actuator's state, whose delay line's length depends on the delay; the
   controller's state; the metric accumulators), the World, plant and parameter tuples field by field, every
@@ -44,14 +46,15 @@ import tempfile
 from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
+from typing import Callable
 
 from ddmr_cli.compiled import AVAILABLE, jit_enabled
+from ddmr_cli.engine.controller_slot import DEFAULT_MODULE
 
 _TEMPLATE_MODULE = "ddmr_cli.engine.stepper"
-_LAW_IMPORT = re.compile(r"^from ddmr_cli\.control\.open_loop import (\w+) as (controller_\w+)  # controller laws$",
+_SLOT_MODULE = "ddmr_cli.engine.controller_slot"
+_LAW_IMPORT = re.compile(r"^from ddmr_cli\.engine\.controller_slot import (\w+) as (controller_\w+)  # controller laws$",
                          re.MULTILINE)
-#: packages whose sources the compiled loop inlines (any edit there gives a new cache key)
-_LAW_PACKAGES = ("compiled.py", "model", "control", "engine")
 
 
 def cache_dir() -> Path:
@@ -84,25 +87,76 @@ def _versions() -> str:
     return f"python={sys.version} numba={numba.__version__} llvmlite={llvmlite.__version__} target={target}"
 
 
-@lru_cache(maxsize=1)
-def _law_sources_digest() -> str:
-    root = Path(__file__).resolve().parents[1]  # the ddmr_cli package
+def _module_file(name: str) -> Path | None:
+    """The source file of module ``name``; None for a name that is not a module (``ddmr_cli.compiled.law``)."""
+    try:
+        spec = importlib.util.find_spec(name)
+    except (ImportError, AttributeError, ValueError):
+        return None
+    return Path(spec.origin) if spec is not None and spec.origin and spec.origin.endswith(".py") else None
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """The ``ddmr_cli`` modules a source file imports (any import, lazy ones too; ``from pkg import sub`` counts
+    ``pkg.sub``, not the package)."""
+    import ast
+
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_bytes())):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            submodules = [f"{node.module}.{a.name}" for a in node.names if _module_file(f"{node.module}.{a.name}")]
+            # ``from pkg import sub``: the submodule is what is used; ``from mod import name``: the module
+            names = submodules or [node.module]
+        out.update(n for n in names if n.split(".")[0] == "ddmr_cli" and _module_file(n) is not None)
+    return out
+
+
+def inlined_sources(law_module: str) -> list[Path]:
+    """The source files the step-loop copy for ``law_module`` can inline: the template's and the controller
+    module's, and every ``ddmr_cli`` module they import, transitively (the slot stands for the controller's module;
+    the slot's default module counts only when the controller lacks an optional law). Sorted, for a stable key."""
+    module = importlib.import_module(law_module)
+    start = {_TEMPLATE_MODULE, law_module, "ddmr_cli.compiled"}
+    if not hasattr(module, "estimates"):
+        start.add(DEFAULT_MODULE)
+    seen: set[str] = set()
+    todo = list(start)
+    while todo:
+        name = todo.pop()
+        if name in seen or name == _SLOT_MODULE:
+            continue
+        seen.add(name)
+        path = _module_file(name) if name != law_module else Path(inspect.getfile(module))
+        if path is not None:
+            todo.extend(_imported_modules(path) - seen)
+    files = {(_module_file(n) if n != law_module else Path(inspect.getfile(module))) for n in seen - {_SLOT_MODULE}}
+    return sorted(p.resolve() for p in files if p is not None)
+
+
+def sources_digest(law_module: str, read=Path.read_bytes) -> str:
+    """The hash of :func:`inlined_sources` (each file's name and bytes, ``read`` to read them) and the versions."""
     digest = hashlib.sha256(_versions().encode())
-    for entry in _LAW_PACKAGES:
-        paths = [root / entry] if entry.endswith(".py") else sorted((root / entry).rglob("*.py"))
-        for path in paths:
-            digest.update(str(path.relative_to(root)).encode())
-            digest.update(path.read_bytes())
+    for path in inlined_sources(law_module):
+        digest.update(path.name.encode())
+        digest.update(read(path))
     return digest.hexdigest()[:16]
+
+
+@lru_cache(maxsize=None)
+def _sources_digest_cached(law_module: str) -> str:
+    return sources_digest(law_module)
 
 
 def _source_for(law_module: str) -> str:
     template = inspect.getsource(importlib.import_module(_TEMPLATE_MODULE))
     module = importlib.import_module(law_module)
 
-    def point(m):  # a law the controller does not define (only ``estimates`` is optional) stays open_loop's default
+    def point(m):  # a law the controller does not define (only ``estimates`` is optional) keeps the slot's default
         optional_default = m.group(1) == "estimates" and not hasattr(module, "estimates")
-        source_module = "ddmr_cli.control.open_loop" if optional_default else law_module
+        source_module = DEFAULT_MODULE if optional_default else law_module
         return f"from {source_module} import {m.group(1)} as {m.group(2)}"
 
     source, count = _LAW_IMPORT.subn(point, template)
@@ -146,10 +200,9 @@ def stepper_for(law_module: str, identity: str = "") -> ModuleType:
     """The step-loop module for the controller whose laws live in ``law_module``, compiled for the call whose
     argument types :func:`call_identity` spells as ``identity`` (generated, imported, cached on disk).
 
-    The cache key covers every law module of the package, the controller's own module, the call's complete
-    argument types and the Python and compiler versions (see the module docstring)."""
-    module_file = Path(inspect.getfile(importlib.import_module(law_module)))
-    key = (_law_sources_digest() + law_module + identity).encode() + module_file.read_bytes()
+    The cache key covers the sources the copy inlines, the call's complete argument types and the Python and
+    compiler versions (see the module docstring)."""
+    key = (_sources_digest_cached(law_module) + law_module + identity).encode()
     digest = hashlib.sha256(key).hexdigest()[:16]
     name = f"ddmr_stepper_{law_module.replace('.', '_')}_{digest}"
     path = cache_dir() / f"{name}.py"
@@ -166,8 +219,9 @@ def stepper_for(law_module: str, identity: str = "") -> ModuleType:
     return module
 
 
-def compiled_run_chunk(law_module: str, args: tuple):
-    """The step loop's ``run_chunk`` for a call with these arguments, loaded from the disk cache or compiled now.
+def compiled_run_chunk(law_module: str, args: tuple, compiling: Callable[[], None] | None = None):
+    """The step loop's ``run_chunk`` for a call with these arguments, loaded from the disk cache or compiled now
+    (``compiling()`` is called first then: the copy has no cache entry yet, about 10 s of compiling follows).
 
     What numba's cache hands back is checked against the call's own signature (a cheap set comparison); an
     entry compiled for another call is named on stderr, deleted, and the loop recompiled, so a stale or
@@ -181,6 +235,8 @@ def compiled_run_chunk(law_module: str, args: tuple):
     signature = tuple(typeof(arg) for arg in args)
     path = Path(module.__file__)
     entries = sorted((path.parent / "__pycache__").glob(f"{path.stem}.*"))
+    if not entries and compiling is not None:
+        compiling()
     try:
         function.compile(signature)
         problem = None if set(function.overloads) == {signature} else "was compiled for another call"
@@ -210,4 +266,5 @@ def check_single_signature(function) -> None:
                            f"its cache key must name one (delete {cache_dir()} and report this)")
 
 
-__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_run_chunk", "stepper_for"]
+__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_run_chunk", "inlined_sources",
+           "sources_digest", "stepper_for"]

@@ -56,6 +56,25 @@ METRICS: dict[str, tuple[str, str]] = {
 }
 
 
+#: The estimation metrics: name -> the names of the controller's ESTIMATE channels whose summed estimate of d it
+#: compares with the true d (None: all of them). ``d_est_mae_ndo`` keeps the paper's "NDO part alone" by name (0
+#: for a controller without an NDO: then it is the mean |d|). The engine sums ``|d - sum of the member channels|``
+#: per metric (the membership rows of :func:`estimation_membership`), in the order :data:`SUMS` names them.
+ESTIMATION_METRICS: dict[str, tuple[str, ...] | None] = {"d_est_mae": None, "d_est_mae_ndo": ("NDO",)}
+
+
+def estimation_membership(channels) -> np.ndarray:
+    """``(len(ESTIMATION_METRICS), max(1, n))`` int64: 1 where channel ``c`` (a
+    :class:`~ddmr_cli.control.base.Diagnostic`) is an estimate that counts in metric ``i``."""
+    from ddmr_cli.control.base import ESTIMATE
+
+    out = np.zeros((len(ESTIMATION_METRICS), max(1, len(channels))), dtype=np.int64)
+    for i, names in enumerate(ESTIMATION_METRICS.values()):
+        for c, channel in enumerate(channels):
+            out[i, c] = channel.kind == ESTIMATE and (names is None or channel.name in names)
+    return out
+
+
 #: Cutoff of the chattering spectrum's high-pass [Hz] (docs/model.md §7: "power above 10 Hz").
 HF_CUTOFF = 10.0
 
@@ -121,13 +140,15 @@ def flush(sums, r, acc):
 
 @law
 def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, phase_segment, t, dev, e_x, e_y, e_theta, saturated,
-               u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, k_e, r_a, hp, hp_zi):
+               u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, diagnostics, estimation, k_e, r_a, hp, hp_zi):
     """Add step ``k`` of run ``r`` to ``sums[r, segment, column]`` (columns: :data:`SUMS`; docs/model.md §7).
 
     A step is steady for the whole run from step ``settle_steps`` on, and for its zone (phase) once the run has
     also been ``zone_settle_steps`` in that zone (phase). ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]``
     (direct form II transposed, as ``scipy.signal.sosfilt``), its state ``acc["hp_state"]`` started at
     ``hp_zi * u`` on the first step (no transient); ``acc["u_prev"]`` is the last voltage, for the total variation.
+    ``diagnostics[c, wheel]`` are the controller's channels, ``estimation[i, c]`` 1 where channel ``c``'s estimate
+    counts in estimation metric ``i`` (:data:`ESTIMATION_METRICS`: all estimates, the NDO alone).
     """
     if not acc["started"]:
         acc["u_prev"][0], acc["u_prev"][1] = u_R, u_L
@@ -160,9 +181,13 @@ def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, p
         acc["u_prev"][w] = u
         b[10 + w] += u * u
         b[12 + w] += u * (u - k_e * (w_R if w == 0 else w_L)) / r_a
-        d, ndo, nn = (d_R, ndo_R, nn_R) if w == 0 else (d_L, ndo_L, nn_L)
-        b[14 + w] += abs(d - ndo - nn)
-        b[16 + w] += abs(d - ndo)
+        d = d_R if w == 0 else d_L
+        for i in range(estimation.shape[0]):  # one pair of abs_dtilde columns per ESTIMATION_METRICS entry
+            dtilde = d
+            for c in range(estimation.shape[1]):
+                if estimation[i, c]:
+                    dtilde -= diagnostics[c, w]
+            b[14 + 2 * i + w] += abs(dtilde)
         b[18 + w] += abs(s_R if w == 0 else s_L)
         b[20 + w] += u
         y = hp[0] * u + acc["hp_state"][w, 0]

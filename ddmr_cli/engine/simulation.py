@@ -19,14 +19,14 @@ import numpy as np
 
 from ddmr_cli.compiled import jit_enabled, plain, thread_count
 from ddmr_cli.checks import finite, first_non_finite, non_negative, one_of, per_wheel, positive
-from ddmr_cli.control.base import STABILITY_LIMIT, WheelController
+from ddmr_cli.control.base import KINDS, STABILITY_LIMIT, SURFACE, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import check_single_signature, compiled_run_chunk
-from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator
+from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
 from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
-from ddmr_cli.engine.results import SERIES_CHANNELS, SimulationResult
+from ddmr_cli.engine.results import SimulationResult, series_channels
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.actuator import Actuator, actuator_fields
 from ddmr_cli.model.kinematics import inverse
@@ -199,6 +199,25 @@ def _initial_wheel_speeds(sim: Simulation) -> np.ndarray:
     return np.array(per_wheel("simulation.initial_wheel_speeds", list(spec), finite))
 
 
+def diagnostic_layout(controller: WheelController) -> tuple[int, np.ndarray, np.ndarray]:
+    """Where the engine finds a controller's diagnostic channels (:meth:`WheelController.diagnostics`): the row of
+    its surface channel (-1: none), the rows recorded after the base series, and the estimation metrics'
+    membership (:func:`~ddmr_cli.engine.metrics.estimation_membership`). ConfigError on ``controller`` for a
+    channel of an unknown kind, a repeated name or more than one surface."""
+    channels = tuple(controller.diagnostics())
+    names = [c.name for c in channels]
+    for c in channels:
+        if c.kind not in KINDS:
+            raise ConfigError("controller", getattr(controller, "name", type(controller).__name__),
+                              f"diagnostic channel {c.name!r} has kind {c.kind!r}; must be one of {', '.join(KINDS)}")
+    surfaces = [i for i, c in enumerate(channels) if c.kind == SURFACE]
+    if len(set(names)) != len(names) or len(surfaces) > 1:
+        raise ConfigError("controller", getattr(controller, "name", type(controller).__name__),
+                          f"diagnostic channels {names} must have distinct names and at most one surface")
+    recorded = np.array([i for i, c in enumerate(channels) if c.kind != SURFACE], dtype=np.int64)
+    return (surfaces[0] if surfaces else -1), recorded, estimation_membership(channels)
+
+
 def _split(n: int, parts: int) -> list[tuple[int, int]]:
     """``range(n)`` in ``parts`` contiguous ``(first, end)`` blocks of sizes differing by at most one."""
     return [(n * i // parts, n * (i + 1) // parts) for i in range(parts)]
@@ -221,6 +240,7 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
     coefficients = [ou_coefficients(dt, sim.terrain.correlation_time)] * 2 + [
         (1.0, 0.0) if uncertainty.constant else ou_coefficients(dt, uncertainty.correlation_time)]  # §5
     phases = sim.scenario.phases
+    surface, recorded, estimation = diagnostic_layout(sim.controller)
     return World(
         reference=reference_table(sim.trajectory, n_steps, dt),
         phase=np.ascontiguousarray(sim.scenario.phase_index(np.arange(n_steps) * dt), dtype=np.int64),
@@ -237,11 +257,13 @@ def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, pha
         zone_settle_steps=int(round(sim.zone_settle_time / dt)), bands=bands is not None,
         band_stride=bands.stride if bands is not None else 1, control_steps=sim.control_steps,
         control_dt=sim.control_dt, sensor=sim.sensor.law_parameters(sim.control_dt),
-        actuator=sim.actuator.law_parameters(dt, sim.robot.max_voltage))
+        actuator=sim.actuator.law_parameters(dt, sim.robot.max_voltage), surface=surface, recorded=recorded,
+        estimation=estimation)
 
 
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
-             progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True) -> SimulationResult:
+             progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True,
+             compiling: Callable[[], None] | None = None) -> SimulationResult:
     """Run one batch: one run per seed, all advanced together.
 
     Parameters
@@ -258,6 +280,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     bands : bool
         Also compute the mean and 5-95 % band over the seeds of a few channels at every grid step
         (:mod:`ddmr_cli.engine.bands`; ``SimulationResult.bands``).
+    compiling : callable(), optional
+        Called just before the step loop is compiled (no compiled copy for this controller and call is cached).
 
     Returns
     -------
@@ -288,7 +312,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     accumulators = np.zeros(n_runs, dtype=np.dtype(ACCUMULATOR_FIELDS))
     MetricAccumulator.initial_state(accumulators)
     controller_state = controller.initial_state(n_runs)
-    series = np.zeros((len(keep_idx), n_steps if keep_idx else 1, len(SERIES_CHANNELS)))
+    channels = series_channels(controller.diagnostics())
+    series = np.zeros((len(keep_idx), n_steps if keep_idx else 1, len(channels)))
     slot = np.full(n_runs, -1, dtype=np.int64)
     slot[keep_idx] = np.arange(len(keep_idx))
     bytes_per_run_step = (_BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
@@ -311,7 +336,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                 args = (k0, n, world, plant, params, runs, controller_state, xi, xs, acc.sums, accumulators, series,
                         slot, band_buffer, first)
                 if loop is None:
-                    loop = compiled_run_chunk(controller.laws.__name__, args + (0, n_runs))
+                    loop = compiled_run_chunk(controller.laws.__name__, args + (0, n_runs), compiling)
 
                 def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
                     noise.next_chunk(n, xi, block)
@@ -340,7 +365,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
         seeds=seeds, controller=getattr(controller, "name", type(controller).__name__),
         scenario=sim.scenario.name, segments=acc.segments, metrics=metrics, diverged=diverged,
         divergence_time=divergence_time,
-        series={seeds[i]: {name: series[n_i, :, c].copy() for c, name in enumerate(SERIES_CHANNELS)}
+        series={seeds[i]: {name: series[n_i, :, c].copy() for c, name in enumerate(channels)}
                 for n_i, i in enumerate(keep_idx)},
         dt=dt, duration=n_steps * dt, wall_time=time.perf_counter() - started, engine="compiled" if jit_enabled() else "python",
         bands=band_acc.arrays() if band_acc is not None else {},

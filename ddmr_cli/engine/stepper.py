@@ -14,8 +14,9 @@ paper's loop, number for number.
 
 Runs are independent scalar loops (no BLAS, nothing couples runs), so seed k gives bit-identical numbers alone
 or inside any batch, in any chunking and with any thread count. This module is the template of the compiled
-loop: :mod:`ddmr_cli.engine.kernels` makes one copy per controller whose only change is the import of the
-controller's laws below, and compiles it (cached on disk). Without numba the same copy runs as Python.
+loop: its controller laws come from the slot :mod:`ddmr_cli.engine.controller_slot`, and
+:mod:`ddmr_cli.engine.kernels` makes one copy per controller whose only change is those four import lines, pointed
+at the controller's module, and compiles it (cached on disk). Without numba the same copy runs as Python.
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ from __future__ import annotations
 import math
 
 from ddmr_cli.compiled import law
-from ddmr_cli.control.open_loop import command as controller_command  # controller laws
-from ddmr_cli.control.open_loop import estimates as controller_estimates  # controller laws
-from ddmr_cli.control.open_loop import start as controller_start  # controller laws
-from ddmr_cli.control.open_loop import update as controller_update  # controller laws
+from ddmr_cli.engine.controller_slot import command as controller_command  # controller laws
+from ddmr_cli.engine.controller_slot import estimates as controller_estimates  # controller laws
+from ddmr_cli.engine.controller_slot import start as controller_start  # controller laws
+from ddmr_cli.engine.controller_slot import update as controller_update  # controller laws
 from ddmr_cli.control.outer_loop import kanayama
 from ddmr_cli.engine.bands import band_row
 from ddmr_cli.engine.integrators import euler, rk4
@@ -69,8 +70,8 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
     n_R, n_L, n_u = run["noise"][0], run["noise"][1], run["noise"][2]
     # what the zero-order hold keeps between control instants
     uc_R, uc_L, us_R, us_L = run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1]
-    sat_R, sat_L, s_R, s_L = run["saturated"][0] != 0, run["saturated"][1] != 0, run["s"][0], run["s"][1]
-    ndo_R, ndo_L, nn_R, nn_L = run["d_ndo"][0], run["d_ndo"][1], run["d_nn"][0], run["d_nn"][1]
+    sat_R, sat_L = run["saturated"][0] != 0, run["saturated"][1] != 0
+    diagnostics, surface = st["diagnostics"], world.surface  # the controller's channels, held in its record
     wd_R, wd_L = run["w_d"][0], run["w_d"][1]
     for j in range(n_steps):
         k = k0 + j
@@ -95,14 +96,12 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
             wdp_R, wdp_L = wd_R, wd_L
             # wheel controller (6) on the measured speeds, the driver's voltage limit and PWM (§10), the estimates
             # of d reported under the applied voltage
-            uc_R, uc_L, s_R, s_L, ndo_R, ndo_L, nn_R, nn_L = controller_command(
-                params, st, kc, mw_R, mw_L, wd_R, wd_L, wdd_R, wdd_L)
+            uc_R, uc_L = controller_command(params, st, kc, mw_R, mw_L, wd_R, wd_L, wdd_R, wdd_L)
             us_R, sat_R = saturate(uc_R, plant.max_voltage)
             us_L, sat_L = saturate(uc_L, plant.max_voltage)
             if act.pwm:
                 us_R, us_L = actuator.pwm(us_R, act.pwm_step), actuator.pwm(us_L, act.pwm_step)
-            ndo_R, ndo_L, nn_R, nn_L = controller_estimates(params, st, mw_R, mw_L, us_R, us_L, ndo_R, ndo_L, nn_R,
-                                                            nn_L)
+            controller_estimates(params, st, mw_R, mw_L, us_R, us_L)
             controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
             if k == 0:
                 actuator.start(act, run, us_R, us_L)
@@ -122,9 +121,11 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
         a_R, a_L, d_R, d_L = wheel_acceleration(plant, w_R, w_L, u_R, u_L, b, uncertain, rough_R, rough_L, roll)
         # metrics (7) on the truth, divergence, kept series
         t = k * world.dt
+        s_R = diagnostics[surface, 0] if surface >= 0 else math.nan
+        s_L = diagnostics[surface, 1] if surface >= 0 else math.nan
         accumulate(sums, r, acc, k, world.settle_steps, world.zone_settle_steps, 1 + zone, world.phase_base + phase, t, dev, e_x, e_y, e_th,
                    sat_R or sat_L,
-                   u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L,
+                   u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, diagnostics, world.estimation,
                    plant.back_emf_constant, plant.armature_resistance, world.hp, world.hp_zi)
         if not dev <= world.divergence_bound and run["divergence_step"] < 0:
             run["divergence_step"] = k
@@ -132,7 +133,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
             band_row(bands[r, k // world.band_stride - band_first], dev, e_x, e_y, e_th, u_R, u_L, s_R, s_L)
         if slot >= 0:
             record(series[slot, k], t, x, y, theta, x_r, y_r, th_r, e_x, e_y, e_th, dev, dist, w_R, w_L,
-                   wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, ndo_R, ndo_L, nn_R, nn_L, rough, b, zone)
+                   wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, rough, b, zone, diagnostics, world.recorded)
         # integrate plant and pose (4); the encoders' true wheel angles
         c, sn = math.cos(theta), math.sin(theta)
         w0_R, w0_L = w_R, w_L
@@ -149,8 +150,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
     run["w_d_prev"][0], run["w_d_prev"][1] = wdp_R, wdp_L
     run["noise"][0], run["noise"][1], run["noise"][2] = n_R, n_L, n_u
     run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1] = uc_R, uc_L, us_R, us_L
-    run["saturated"][0], run["saturated"][1], run["s"][0], run["s"][1] = 1 if sat_R else 0, 1 if sat_L else 0, s_R, s_L
-    run["d_ndo"][0], run["d_ndo"][1], run["d_nn"][0], run["d_nn"][1] = ndo_R, ndo_L, nn_R, nn_L
+    run["saturated"][0], run["saturated"][1] = 1 if sat_R else 0, 1 if sat_L else 0
     run["w_d"][0], run["w_d"][1] = wd_R, wd_L
     if k0 + n_steps == world.reference.shape[0]:  # the run's last step: add its open block to its segments
         flush(sums, r, acc)

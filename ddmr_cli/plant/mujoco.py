@@ -1,4 +1,4 @@
-"""The rigid-body plant: the paper's robot as a MuJoCo model on a heightfield (issue 30; docs/model.md, "Physics
+"""The rigid-body plant: the paper's robot as a MuJoCo model on a heightfield (issue 30; docs/model.md §13, "Physics
 plant (MuJoCo)").
 
 :class:`MujocoPlant` is an external plant the engine steps from Python: a batch of ``n`` runs, each its own MuJoCo
@@ -14,8 +14,10 @@ Needs the optional extra ``physics`` (``pip install -e ".[physics]"``).
 from __future__ import annotations
 
 import copy
+import importlib.util
 import math
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Mapping
 
@@ -24,11 +26,12 @@ import numpy as np
 from ddmr_cli.compiled import plain
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import NominalModel, Robot, nominal_acceleration
+from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.terrain import Terrain
-from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_robot, elevation_range, field_layout, heightfield,
-                                         mjcf, normalised, substeps)
+from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_robot, elevation_range, field_layout,
+                                         heightfield, mjcf, normalised, rough_phases, substeps)
 
-__all__ = ["MujocoPlant", "import_mujoco", "EXTRA_HINT"]
+__all__ = ["MujocoPlant", "import_mujoco", "validate", "EXTRA_HINT"]
 
 #: the one line a missing extra prints
 EXTRA_HINT = 'needs MuJoCo, the optional extra: pip install -e ".[physics]"'
@@ -41,6 +44,27 @@ def import_mujoco():
     except ImportError:
         raise ConfigError("plant", "mujoco", EXTRA_HINT) from None
     return mujoco
+
+
+def validate(robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float,
+             reference_xy: np.ndarray | None = None, scenario: Scenario | None = None) -> PhysicsConfig:
+    """Every check of the plant without building it (config validation, before a run): the physics extra is
+    installed, the plant config's own values (a timestep MuJoCo cannot hold stable among them), the robot fits the
+    grid (a heightfield too coarse for the wheel radius), ``dt`` a whole number of MuJoCo steps, the zones inside
+    the field, the reference path ``(K, 2)`` [m], when given, on it, and the scenario's roughness phases on the
+    distance clock (:func:`~ddmr_cli.plant.mujoco_model.rough_phases`). Raises :class:`ConfigError` naming the
+    key; returns the parsed config."""
+    if importlib.util.find_spec("mujoco") is None:
+        raise ConfigError("plant", "mujoco", EXTRA_HINT)
+    if not isinstance(config, PhysicsConfig):
+        config = PhysicsConfig.from_mapping(config)
+    check_robot(robot, config)
+    substeps(config, float(dt))
+    field_layout(terrain, config.heightfield)
+    if reference_xy is not None:
+        check_reference(robot, config.heightfield, np.asarray(reference_xy, dtype=float))
+    rough_phases(scenario)
+    return config
 
 
 class MujocoPlant:
@@ -57,6 +81,9 @@ class MujocoPlant:
         The plant's own parameters (conf/plant/mujoco.yaml).
     dt : float
         The plant step [s] (``simulation.dt``): a whole multiple of ``plant.timestep``.
+    scenario : Scenario, optional
+        Its phases that turn the roughness off (scenario 2's [5, 10) m) are flat ground (the zone's rolling
+        friction kept); None: the zones' roughness everywhere.
 
     Attributes
     ----------
@@ -72,11 +99,11 @@ class MujocoPlant:
     state stays where it was when it diverged and its disturbance is NaN.
     """
 
-    def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float) -> None:
+    def __init__(self, robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt: float,
+                 scenario: Scenario | None = None) -> None:
         self._mj = mj = import_mujoco()
-        if not isinstance(config, PhysicsConfig):
-            config = PhysicsConfig.from_mapping(config)
-        check_robot(robot, config)
+        config = validate(robot, terrain, config, dt, scenario=scenario)
+        self._rough = rough_phases(scenario)
         self.robot, self.terrain, self.config = robot, terrain, config
         self.dt = float(dt)
         self._substeps = substeps(config, self.dt)
@@ -104,19 +131,20 @@ class MujocoPlant:
     def heights(self, seed: int) -> np.ndarray:
         """The ground of ``seed`` [m], shape ``(nrow, ncol)``, rows along y and columns along x
         (:func:`ddmr_cli.plant.mujoco_model.heightfield`)."""
-        return heightfield(seed, self.robot, self.terrain, self.config.heightfield, self._layout)
+        return heightfield(seed, self.robot, self.terrain, self.config.heightfield, self._layout, self._rough)
 
     def field_axes(self) -> tuple[np.ndarray, np.ndarray]:
         """The heightfield's sample coordinates ``(x, y)`` [m]."""
         return self._layout.x, self._layout.y
 
     def _model_for(self, seed: int):
+        """The model with the ground of ``seed``, and that ground's heights as MuJoCo holds them [m]."""
         model = copy.deepcopy(self._model)
         data = normalised(self.heights(seed), self._span).astype(np.float32)
         for i, (adr, ncol) in enumerate(self._hfields):
             c0 = self._layout.columns[i]
             model.hfield_data[adr:adr + data.shape[0] * ncol] = data[:, c0:c0 + ncol].ravel()
-        return model
+        return model, (data.astype(float) - 0.5) * self._span
 
     def reset(self, seeds: np.ndarray, pose0: np.ndarray, w0: np.ndarray) -> None:
         """Start a batch: each run's ground from its seed, the robot settled onto it at ``pose0`` and rolling
@@ -136,12 +164,13 @@ class MujocoPlant:
         pose0 = np.broadcast_to(np.asarray(pose0, dtype=float), (n, 3))
         w0 = np.broadcast_to(np.asarray(w0, dtype=float), (n, 2))
         self._n = n
-        self._models = [self._model_for(int(s)) for s in seeds]
+        self._models, grounds = map(list, zip(*[self._model_for(int(s)) for s in seeds]))
         self._datas = [mj.MjData(m) for m in self._models]
         R, L = self.robot.wheel_radius, self.robot.half_track
-        for m, d, (x, y, th), (wr, wl) in zip(self._models, self._datas, pose0, w0):
+        for m, d, ground, (x, y, th), (wr, wl) in zip(self._models, self._datas, grounds, pose0, w0):
             d.ctrl[:] = (0.0, 0.0, 1.0, 1.0)
-            d.qpos[0:3] = (x, y, R + self._ground_at(m, x, y) + 1e-3)
+            # dropped from 1 mm above the highest ground under its footprint: no wheel or caster starts inside it
+            d.qpos[0:3] = (x, y, R + self._highest(ground, x, y) + 1e-3)
             d.qpos[3:7] = (math.cos(th / 2), 0.0, 0.0, math.sin(th / 2))
             mj.mj_forward(m, d)
             held = np.r_[0, 1, 5, self._wheel_dof]  # x, y, yaw rate, wheels held still: z, roll, pitch settle
@@ -167,16 +196,19 @@ class MujocoPlant:
         self._d = np.zeros((n, 2))
         self._diverged = np.zeros(n, dtype=bool)
         self._airborne = np.zeros(n, dtype=np.int64)
+        self._seconds = {"mujoco": 0.0, "step": 0.0}
         self._check_divergence()
 
-    def _ground_at(self, model, x: float, y: float) -> float:
-        """The ground height [m] at the grid sample nearest ``(x, y)`` of ``model``'s heightfields."""
-        lay = self._layout
-        col = int(np.clip(round((x - lay.x_min) / lay.dx), 0, lay.ncol - 1))
-        row = int(np.clip(round((y + lay.half_width) / lay.dy), 0, lay.nrow - 1))
-        zone = min(int(np.searchsorted(lay.columns, col, side="right")) - 1, len(self._hfields) - 1)
-        adr, ncol = self._hfields[zone]
-        return (float(model.hfield_data[adr + row * ncol + col - lay.columns[zone]]) - 0.5) * self._span
+    def _highest(self, ground: np.ndarray, x: float, y: float) -> float:
+        """The highest ground [m] of ``ground`` (rows along y, columns along x) within the robot's reach of
+        ``(x, y)``: a square of half side the farthest of a wheel's rim (``L + R``), a caster's and the chassis's
+        corner from the axle midpoint, whatever the heading."""
+        lay, cfg = self._layout, self.config
+        reach = max(self.robot.half_track + self.robot.wheel_radius, cfg.caster.offset + cfg.caster.radius,
+                    math.hypot(cfg.chassis.length / 2, cfg.chassis.width / 2))
+        c0, c1 = (int(np.clip(round((v - lay.x_min) / lay.dx), 0, lay.ncol - 1)) for v in (x - reach, x + reach))
+        r0, r1 = (int(np.clip(round((v + lay.half_width) / lay.dy), 0, lay.nrow - 1)) for v in (y - reach, y + reach))
+        return float(ground[r0:r1 + 1, c0:c1 + 1].max())
 
     # -- a step --------------------------------------------------------------------------------------------
 
@@ -209,6 +241,7 @@ class MujocoPlant:
         self._diverged |= ~np.isfinite(ctrl).all(axis=1)  # a non-finite voltage or damping: diverged, not stepped
         w_before = self._qvel[:, self._wheel_dof].copy()
         xy_before = self._qpos[:, 0:2].copy()
+        started = time.perf_counter()
         live = np.flatnonzero(~self._diverged)
         shares = [s for s in np.array_split(live, min(self._threads, max(len(live), 1))) if len(s)]
         if len(shares) <= 1:
@@ -217,6 +250,7 @@ class MujocoPlant:
         else:
             for f in [self._pool().submit(self._advance, s, ctrl) for s in shares]:
                 f.result()
+        stepped = time.perf_counter()
         w = self._qvel[:, self._wheel_dof]
         a_R, a_L = plain(nominal_acceleration)(self._nominal, w_before[:, 0], w_before[:, 1], u[:, 0], u[:, 1])
         d = (w - w_before) / self.dt - np.stack([a_R, a_L], axis=1)
@@ -229,6 +263,8 @@ class MujocoPlant:
         self._theta = self._theta + np.nan_to_num(step, nan=0.0)
         self._airborne = np.where((self._touch > 0).any(axis=1), 0, self._airborne + 1)
         self._check_divergence()
+        self._seconds["mujoco"] += stepped - started
+        self._seconds["step"] += time.perf_counter() - started
 
     def _pool(self) -> ThreadPoolExecutor:
         if getattr(self, "_executor", None) is None:
@@ -263,9 +299,9 @@ class MujocoPlant:
                 "distance": self._distance.copy(), "w": self._qvel[:, self._wheel_dof].copy()}
 
     def true_disturbance(self) -> np.ndarray:
-        """The lumped disturbance d of the paper's (8) over the last step [rad/s^2], ``(n, 2)``: the measured wheel
-        acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains, ``f(w_k) + g u_k``
-        (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
+        """The lumped disturbance d of the paper's (8) over the last step [rad/s^2], ``(n, 2)``, docs/model.md
+        [13g]: the measured wheel acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains,
+        ``f(w_k) + g u_k`` (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
         return self._d.copy()
 
     def energy(self) -> np.ndarray:
@@ -282,6 +318,17 @@ class MujocoPlant:
             mj.mj_energyVel(m, d)
             out[i] = d.energy
         return out
+
+    @property
+    def threads(self) -> int:
+        """The worker threads stepping the runs (``plant.threads``, 0 resolved to this process's cores)."""
+        return self._threads
+
+    def timing(self) -> dict[str, float]:
+        """Wall seconds since :meth:`reset`: ``mujoco``, in the MuJoCo steps of the runs (the worker threads'
+        section, reading the state included), and ``step``, in the whole of :meth:`step` (the true d, the
+        divergence checks and the rest of the plant's own bookkeeping added): ``ddmr bench``'s share."""
+        return dict(self._seconds)
 
     def diverged(self) -> np.ndarray:
         """``(n,)`` bool: the run has tipped over (tilt > ``plant.divergence.tip_angle``), left the ground (neither

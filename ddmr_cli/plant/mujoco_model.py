@@ -1,5 +1,5 @@
-"""The MuJoCo model of the paper's robot and terrain, generated from the configs (docs/model.md, "Physics plant
-(MuJoCo)"). Plain Python and numpy: this module writes the MJCF text and the heightfield; it never imports mujoco.
+"""The MuJoCo model of the paper's robot and terrain, generated from the configs (docs/model.md §13, "Physics
+plant (MuJoCo)"). Plain Python and numpy: this module writes the MJCF text and the heightfield; it never imports mujoco.
 
 The robot: a chassis on a free joint whose origin is the axle midpoint, two hinge-driven wheels on the axle
 (right at ``y = -L``, left at ``y = +L``; positive speed drives forward) and two frictionless ball casters on the
@@ -20,18 +20,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ddmr_cli.checks import finite, integer, non_negative, one_of, positive
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.robot import GRAVITY, Robot
+from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.terrain import Terrain
 
 __all__ = ["HeightfieldConfig", "WheelConfig", "CasterConfig", "ChassisConfig", "ContactConfig", "DivergenceConfig",
-           "PhysicsConfig", "FieldLayout", "field_layout", "slope_gain", "height_sd", "zone_friction",
-           "motor_gains", "heightfield", "normalised", "mjcf", "TERRAIN_STREAM", "WHEEL_SHAPES"]
+           "PhysicsConfig", "FieldLayout", "field_layout", "check_robot", "check_reference", "substeps", "slope_gain",
+           "height_sd", "zone_friction", "motor_gains", "heightfield", "rough_phases", "amplitude", "normalised",
+           "mjcf", "TERRAIN_STREAM", "WHEEL_SHAPES"]
 
 #: the spawn key that derives a run's heightfield from its seed (child 2 of ``SeedSequence(seed)``; child 1 is
 #: the sensor's stream, :data:`ddmr_cli.engine.noise.SENSOR_STREAM`)
@@ -56,7 +58,7 @@ def _section(cls, key: str, values: Any):
 
 @dataclass(frozen=True)
 class HeightfieldConfig:
-    """The heightfield's extent and the roughness-to-height mapping (docs/model.md, "Physics plant")."""
+    """The heightfield's extent and the roughness-to-height mapping (docs/model.md §13)."""
 
     resolution: float          # m
     x_min: float               # m
@@ -175,6 +177,13 @@ class PhysicsConfig:
             raise ConfigError("plant.timestep", self.timestep,
                               f"MuJoCo cannot hold the contacts stable: must be <= plant.contact.timeconst / 2 = "
                               f"{self.contact.timeconst / 2:g} s")
+        # MuJoCo integrates a joint's spring explicitly: a caster (mass m_c on stiffness k, the chassis far heavier)
+        # oscillates at w = sqrt(k / m_c) and the step is stable only while w h < 2
+        spring = 2.0 * math.sqrt(self.caster.mass / self.caster.stiffness)
+        if not self.timestep < spring:
+            raise ConfigError("plant.timestep", self.timestep,
+                              f"MuJoCo cannot hold the caster springs stable: must be < 2 sqrt(plant.caster.mass / "
+                              f"plant.caster.stiffness) = {spring:.3g} s")
 
     @classmethod
     def from_mapping(cls, values: Mapping) -> "PhysicsConfig":
@@ -227,6 +236,25 @@ def check_robot(robot: Robot, config: PhysicsConfig) -> None:
                           f"the chassis must fit between the wheels: must be < {2 * L - config.wheel.width:g} m")
 
 
+def check_reference(robot: Robot, config: HeightfieldConfig, xy: np.ndarray) -> None:
+    """The reference path ``xy`` ``(K, 2)`` [m] keeps both wheels on the heightfield: ``x_min + L + R <= x <= x_max -
+    L - R`` and ``|y| <= half_width - L - R`` (a robot that follows it would otherwise drive off the ground)."""
+    reach = robot.half_track + robot.wheel_radius
+    x, y = xy[:, 0], xy[:, 1]
+    if x.min() < config.x_min + reach:
+        raise ConfigError("plant.heightfield.x_min", config.x_min,
+                          f"the reference leaves the field: it reaches x = {x.min():.3g} m, the wheels need x_min <= "
+                          f"{x.min() - reach:.3g} m")
+    if x.max() > config.x_max - reach:
+        raise ConfigError("plant.heightfield.x_max", config.x_max,
+                          f"the reference leaves the field: it reaches x = {x.max():.3g} m, the wheels need x_max >= "
+                          f"{x.max() + reach:.3g} m")
+    if np.abs(y).max() > config.half_width - reach:
+        raise ConfigError("plant.heightfield.half_width", config.half_width,
+                          f"the reference leaves the field: it reaches |y| = {np.abs(y).max():.3g} m, the wheels need "
+                          f"half_width >= {np.abs(y).max() + reach:.3g} m")
+
+
 def disc_inertia(mass: float, radius: float) -> tuple[float, float]:
     """A thin disc's ``(spin, diametral)`` moments of inertia ``(m r^2 / 2, m r^2 / 4)`` [kg m^2]."""
     return mass * radius**2 / 2, mass * radius**2 / 4
@@ -241,8 +269,8 @@ def chassis_yaw_inertia(robot: Robot, config: PhysicsConfig) -> float:
 
 
 def motor_gains(robot: Robot) -> tuple[float, float]:
-    """The DC-motor law ``tau = K_u u - b B w`` (docs/model.md §1 and §5) as two MuJoCo actuators per wheel: a
-    motor of gain ``K_u = k_t / R_a`` [N m/V] on the voltage ``u`` and a damper whose gain is affine in the wheel
+    """The DC-motor law ``tau = K_u u - b B w`` (docs/model.md [13a], [1b]; b of [5d]) as two MuJoCo actuators
+    per wheel: a motor of gain ``K_u = k_t / R_a`` [N m/V] on the voltage ``u`` and a damper whose gain is affine in the wheel
     speed, ``-B w`` [N m s/rad] with ``B = b_v + k_t k_e / R_a``, on the control ``b`` (scenario 2's damping
     scale, 1 when none), which multiplies the whole of B as in :func:`ddmr_cli.model.robot.disturbance`. Returns
     ``(K_u, -B)``."""
@@ -252,20 +280,21 @@ def motor_gains(robot: Robot) -> tuple[float, float]:
 def slope_gain(robot: Robot) -> float:
     """The wheel acceleration one unit of ground slope under one wheel gives [rad/s^2]: that wheel carries
     ``N = m g / 2`` and feels the torque ``N R s``, and ``d = -J^-1 tau``, so the wheel's own d has RMS
-    ``N R s |(J^-1_p, J^-1_q)|`` when the two wheels meet independent slopes (docs/model.md, "Physics plant")."""
+    ``N R s |(J^-1_p, J^-1_q)|`` when the two wheels meet independent slopes (docs/model.md [13b])."""
     jinv = robot.inverse_inertia
     return robot.mass * GRAVITY / 2 * robot.wheel_radius * math.hypot(jinv.p, jinv.q)
 
 
 def height_sd(robot: Robot, terrain: Terrain, config: HeightfieldConfig) -> np.ndarray:
-    """Each zone's height SD [m]: the slope SD ``roughness / slope_gain`` times ``l / sqrt(2)`` (the slope SD of a
-    Gaussian-correlated surface of correlation length ``l`` is ``sqrt(2) sigma_h / l``)."""
+    """Each zone's height SD [m], docs/model.md [13c]-[13d]: the slope SD ``roughness / slope_gain`` times
+    ``l / sqrt(2)`` (the slope SD of a Gaussian-correlated surface of correlation length ``l`` is
+    ``sqrt(2) sigma_h / l``)."""
     return terrain.roughness / slope_gain(robot) * config.correlation_length / math.sqrt(2)
 
 
 def zone_friction(robot: Robot, terrain: Terrain) -> np.ndarray:
-    """Each zone's MuJoCo rolling-friction coefficient [m]: ``mu R``, so that a wheel carrying ``N = m g / 2``
-    meets at most ``mu R N = mu m g R / 2``, the wheel plant's rolling-resistance torque (docs/model.md §5)."""
+    """Each zone's MuJoCo rolling-friction coefficient [m], docs/model.md [13f]: ``mu R``, so that a wheel carrying
+    ``N = m g / 2`` meets at most ``mu R N = mu m g R / 2``, the wheel plant's rolling-resistance torque (docs/model.md §5)."""
     return terrain.mu * robot.wheel_radius
 
 
@@ -313,14 +342,15 @@ def field_layout(terrain: Terrain, config: HeightfieldConfig) -> FieldLayout:
     return FieldLayout(config.x_min, dx, ncol, config.half_width, dy, nrow, tuple(columns))
 
 
-def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout) -> np.ndarray:
-    """A run's ground heights [m], shape ``(nrow, ncol)`` (rows along y, columns along x).
+def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout,
+                rough: Sequence[tuple[float, bool]] = ()) -> np.ndarray:
+    """A run's ground heights [m], shape ``(nrow, ncol)`` (rows along y, columns along x), docs/model.md [13e].
 
     A unit-variance Gaussian-correlated field ``n`` (white noise from the run's terrain stream,
     ``default_rng(SeedSequence(seed, spawn_key=(TERRAIN_STREAM,)))``, smoothed by a Gaussian kernel of SD ``l / 2``
-    so its correlation is ``exp(-r^2 / l^2)``, rescaled to unit sample variance) times each zone's height SD
-    (:func:`height_sd`), ramped linearly from the previous zone's over ``ramp`` metres, clipped at ``truncation``
-    SDs. Same seed, same ground.
+    so its correlation is ``exp(-r^2 / l^2)``, rescaled to unit sample variance) times the height SD of each
+    stretch of ground (:func:`amplitude`; ``rough``: the scenario's phases, :func:`rough_phases`), clipped at
+    ``truncation`` SDs. Same seed, same ground.
     """
     from scipy.ndimage import gaussian_filter
 
@@ -331,19 +361,51 @@ def heightfield(seed: int, robot: Robot, terrain: Terrain, config: HeightfieldCo
     sd = unit.std()
     unit = unit / sd if sd > 0 else unit
     np.clip(unit, -config.truncation, config.truncation, out=unit)
-    return unit * amplitude(robot, terrain, config, layout)[None, :]
+    return unit * amplitude(robot, terrain, config, layout, rough)[None, :]
 
 
-def amplitude(robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout) -> np.ndarray:
-    """The height SD at each column [m]: each zone's :func:`height_sd`, ramped from the previous zone's."""
+def rough_phases(scenario: Scenario | None) -> tuple[tuple[float, bool], ...]:
+    """The scenario's phases as ``(start [m from the origin], roughness on)`` for the ground (docs/model.md §13):
+    empty when every phase has roughness on (or no scenario). The ground is a place, so phases that turn the
+    roughness off must go by distance (``scenario.phase_clock=distance``, the default): on the paper's line the
+    distance travelled is x to a few millimetres."""
+    if scenario is None or all(p.roughness for p in scenario.phases):
+        return ()
+    if scenario.phase_clock != "distance":
+        raise ConfigError("scenario.phase_clock", scenario.phase_clock,
+                          "plant=mujoco's ground is a place, not a clock: phases that turn the roughness off must go "
+                          "by distance (scenario.phase_clock=distance)")
+    return tuple((float(p.start), bool(p.roughness)) for p in scenario.phases)
+
+
+def amplitude(robot: Robot, terrain: Terrain, config: HeightfieldConfig, layout: FieldLayout,
+              rough: Sequence[tuple[float, bool]] = ()) -> np.ndarray:
+    """The height SD at each column [m]: the ground in stretches that start at every zone start and every phase
+    start of ``rough`` (:func:`rough_phases`), each of its zone's :func:`height_sd` (0 where the phase has the
+    roughness off), ramped linearly from the previous stretch's over ``ramp`` metres; a stretch starting past the
+    field's end is not on it."""
     sd = height_sd(robot, terrain, config)
+    zone_starts = [z.start for z in terrain.zones]
+    starts = sorted(set(zone_starts) | {start for start, _ in rough})
+
+    def stretch_sd(start: float) -> float:
+        zone = sd[max(i for i, z in enumerate(zone_starts) if z <= start)]
+        on = [flag for s0, flag in rough if s0 <= start]
+        return zone if not on or on[-1] else 0.0
+
     x = layout.x
-    out = np.full(layout.ncol, sd[0])
-    for i in range(1, len(sd)):
-        x0 = layout.x_min + layout.dx * layout.columns[i]
+    previous = stretch_sd(starts[0])
+    out = np.full(layout.ncol, previous)
+    for start in starts[1:]:
+        column = int(round((config.origin + start - layout.x_min) / layout.dx))
+        if column >= layout.ncol - 1:
+            break
+        current = stretch_sd(start)
+        x0 = layout.x_min + layout.dx * column
         frac = np.ones_like(x) if config.ramp == 0 else np.clip((x - x0) / config.ramp, 0.0, 1.0)
         inside = x >= x0 - 1e-12
-        out[inside] = sd[i - 1] + (sd[i] - sd[i - 1]) * frac[inside]
+        out[inside] = previous + (current - previous) * frac[inside]
+        previous = current
     return out
 
 

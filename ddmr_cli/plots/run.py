@@ -15,6 +15,7 @@ import numpy as np
 
 from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of, save,
                                    thin)
+from ddmr_cli.engine.results import d_hat, estimate_names
 
 #: the zoom of the control signals (s)
 ZOOM_WIDTH = 0.3
@@ -131,14 +132,15 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     axes = fig.subplots(3, 2, sharex="col", gridspec_kw={"width_ratios": [2.4, 1]})
     t0, t1 = _zoom(t, settle)
     win = (t >= t0) & (t <= t1)
-    d_hat = series["d_hat_ndo_right"] + series["d_hat_nn_right"]
+    estimators = estimate_names(series)  # the controller's estimates of d (none: no estimate drawn)
+    estimate = d_hat(series, "right")
     signals = ((("u_right", "u_R", {"color": color, "lw": 0.6}), ("u_left", "u_L", {"color": "0.5", "lw": 0.6})),
                (("s_right", "s_R", {"color": color, "lw": 0.6}), ("s_left", "s_L", {"color": "0.5", "lw": 0.6})),
                (("d_true_right", "d true (R)", {**REFERENCE_STYLE, "lw": 0.6}),
-                (None, "d̂ (R)", {"color": color, "lw": 0.7})))
+                *([(None, f"d̂ {' + '.join(estimators)} (R)", {"color": color, "lw": 0.7})] if estimators else [])))
     clipped = False
     for row, lines, unit in zip(axes, signals, ("voltage [V]", "s [rad/s]", "d [rad/s²]")):
-        arrays = [series[key] if key else d_hat for key, _, _ in lines]
+        arrays = [series[key] if key else estimate for key, _, _ in lines]
         _shade(row[0], t, zone, settle)
         row[0].axvspan(t0, t1, color=OKABE_ITO["yellow"], alpha=0.35, zorder=0)
         for y, (_, name, kw) in zip(arrays, lines):

@@ -18,7 +18,8 @@ from ddmr_cli.report import verdicts as V
 from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten, load
-from ddmr_cli.report.figures import ACROSS, common_seed, detailed, fig_table4, shown_jobs, start_figures
+from ddmr_cli.report.figures import (ACROSS, common_seed, detailed, fig_table4, figure_tasks, shown_jobs,
+                                     start_figures)
 from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
@@ -57,11 +58,13 @@ class Report:
     moved into, the ``--out`` its markdown names (default ``out``)."""
 
     def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True,
-                 final: Path | None = None, all_figures: bool = False):
+                 final: Path | None = None, step=None, all_figures: bool = False):
         self.data, self.out, self.margin = data, out, margin or Margin()
+        self.step = step or (lambda n=1: None)  # advances the report's progress bar
         self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
         self.all_figures = all_figures  # every figure of every scenario (figures.figure_tasks)
+        self.pending_figures = None  # what start_figures returned: waits for the figures
         self.styles = StyleBook((j.controller for j in data.jobs), data.displays())
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
@@ -288,21 +291,29 @@ class Report:
         est["paper_d_est_mae"] = [paper.get(r["controller"], math.nan) if r["scenario"] == PAPER_SCENARIO
                                   else math.nan for _, r in est.iterrows()]
         est["ratio_d_est_mae"] = est["d_est_mae_mean"] / est["paper_d_est_mae"]
-        # a controller without an estimator reports d-hat = 0: its "estimation MAE" is the mean |d|, not shown
-        blind = [d.job(r["scenario"], r["key"]).summary.get("estimators") == [] for _, r in est.iterrows()]
+        # the estimators each controller names (its ESTIMATE channels); a controller without one reports d-hat = 0:
+        # its "estimation MAE" is the mean |d|, not shown, and the NDO-alone column only for a controller with an NDO
+        names = [d.job(r["scenario"], r["key"]).summary.get("estimators") for _, r in est.iterrows()]
+        est["estimators"] = [" + ".join(n) if n else ("–" if n is not None else "") for n in names]
+        blind = [n == [] for n in names]
         est.loc[blind, [c for c in est.columns if c.startswith(("d_est_mae", "ratio_d_est_mae"))]] = math.nan
+        no_ndo = [n is not None and "NDO" not in n for n in names]
+        est.loc[no_ndo, [c for c in est.columns if c.startswith("d_est_mae_ndo")]] = math.nan
         link = self.csv("estimation.csv", est, "disturbance estimation")
         self.add("## Disturbance estimation", "",
-                 f"MAE of d_true − d̂ over both wheels (rad/s², units of d), of the NDO part alone, and the MAE of the "
-                 f"sliding variable ({link}). Controllers without an estimator (PID, SMC, ...) report d̂ = 0: theirs "
-                 f"would only be the mean |d| and is left out (–). "
+                 f"MAE of d_true − d̂ over both wheels (rad/s², units of d), d̂ the sum of the estimates of the "
+                 f"estimators each controller names (an NDO, a network, ADRC's ESO), of the NDO part alone (controllers "
+                 f"with an NDO), and the MAE of the sliding variable ({link}). Controllers without an estimator (PID, "
+                 f"SMC, ...) report d̂ = 0: theirs would only be the mean |d| and is left out (–). "
                  f"The paper's 48.3 (NDO) and 16.0 (NDO+NNO) are compared with scenario 1.", "")
         for scenario in d.scenarios:
-            extra = [("Paper", lambda r: T.fmt(r["paper_d_est_mae"])),
-                     ("Ours/paper", lambda r: "–" if T.isnan(r["ratio_d_est_mae"]) else f"×{r['ratio_d_est_mae']:.2f}")]
+            paper_columns = [("Paper", lambda r: T.fmt(r["paper_d_est_mae"])),
+                             ("Ours/paper", lambda r: "–" if T.isnan(r["ratio_d_est_mae"])
+                              else f"×{r['ratio_d_est_mae']:.2f}")]
+            extra = [("Estimators", lambda r: r["estimators"])] + (paper_columns if scenario == PAPER_SCENARIO else [])
             self.add(f"### {scenario}", "", T.md_metric_table(
                 est, scenario, [("d_est_mae", "d estimation MAE"), ("d_est_mae_ndo", "NDO part alone"),
-                                ("s_mae", "s MAE (rad/s)")], extra if scenario == PAPER_SCENARIO else ()), "")
+                                ("s_mae", "s MAE (rad/s)")], extra), "")
 
     def nn_share(self) -> None:
         """The NN's share of the disturbance estimate and of the voltage, per NNO job, from its kept series."""
@@ -366,7 +377,7 @@ class Report:
             self.add("## Figures", "", "Not drawn (`ddmr report --no-figures`); the tables below hold every number.",
                      "")
             return
-        figures, notes = self.pending_figures()
+        figures, notes = self.start_figures()()
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
         shown = self.data.displays()
@@ -413,37 +424,62 @@ class Report:
             self.add(f"- {self.link(path)}: {what}")
         self.add("", "Units of every metric: " + "; ".join(f"{m} [{u}]" for m, (u, _) in METRICS.items()) + ".", "")
 
+    #: the sections, in order (``figures`` also advances the bar once per figure task)
+    SECTIONS = ("header", "configuration", "status", "table3", "table4", "verdicts", "effort", "estimation",
+                "nn_share", "realism", "segments", "figures", "files")
+
+    def steps(self) -> int:
+        """The steps of :meth:`build` for its progress bar: one per section, one per figure task."""
+        return len(self.SECTIONS) + (len(figure_tasks(self.data, self.all_figures)) if self.draw_figures else 0)
+
+    def start_figures(self):
+        """Start drawing the figures (in forked processes while the tables are computed, issue 28), once; returns
+        the function that waits for them (:func:`ddmr_cli.report.figures.start_figures`), each figure task
+        advancing the progress bar (:attr:`step`)."""
+        if self.pending_figures is None:
+            self.pending_figures = start_figures(self.data, self.figures_dir, self.styles, every=self.all_figures,
+                                                 done=lambda: self.step())
+        return self.pending_figures
+
     def build(self) -> Path:
-        # the figures are drawn in forked processes while the tables below are computed (issue 28)
-        self.pending_figures = (start_figures(self.data, self.figures_dir, self.styles, every=self.all_figures)
-                                if self.draw_figures else None)
+        if self.draw_figures:
+            self.start_figures()
         stats = T.stats_frame(self.data)
-        self.header()
-        self.configuration()
-        self.status()
-        self.table3()
-        self.table4(stats)
-        self.verdicts()
-        self.effort(stats)
-        self.estimation(stats)
-        self.nn_share()
-        realism.section(self)
-        self.segments()
-        self.figures()
-        self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
-        self.files()
+        with_stats = {"table4", "effort", "estimation"}
+        for name in self.SECTIONS:
+            if name == "realism":
+                realism.section(self)
+            elif name == "files":
+                self.csv("statistics.csv", stats, "mean and SD over seeds of every metric")
+                self.files()
+            else:
+                getattr(self, name)(*([stats] if name in with_stats else []))
+            self.step()
         io.write_text(self.out / "report.md", "\n".join(self.md))
         return self.out
 
 
-def build(path, out=None, margin=None, figures: bool = True, all_figures: bool = False) -> Path:
+def build(path, out=None, margin=None, figures: bool = True, progress: bool = True, all_figures: bool = False
+          ) -> Path:
     """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`);
-    ``all_figures``: every figure of every scenario (:func:`ddmr_cli.report.figures.figure_tasks`)."""
+    ``progress``: a bar over the sections and the figures, with an ETA (:mod:`ddmr_cli.progress`), drawn once the
+    report's dir is locked, so a refused report prints its one error line only; ``all_figures``: every figure of
+    every scenario (:func:`ddmr_cli.report.figures.figure_tasks`)."""
+    from ddmr_cli.progress import Ticker, bar
+
     margin = Margin.parse(margin)
-    data = load(path)
+    data = load(path)  # reading the jobs' tables: about 1 s for 72 jobs
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
-    return staged(out_dir, lambda root: Report(data, root, margin, figures, final=out_dir,
-                                                    all_figures=all_figures).build())
+
+    def write(root: Path) -> Path:
+        report = Report(data, root, margin, figures, final=out_dir, all_figures=all_figures)
+        if figures:
+            report.start_figures()  # the figure processes forked before the bar's thread starts
+        with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs") as b, Ticker(b):
+            report.step = b.update
+            return report.build()
+
+    return staged(out_dir, write)
 
 
 # --- one report per output dir, moved in whole ---------------------------------------------------------------

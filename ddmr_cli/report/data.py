@@ -25,6 +25,10 @@ if TYPE_CHECKING:
 #: The paper's reference. A job on another one (``trajectory=circle``) is reported under the scenario
 #: ``<scenario>@<trajectory>`` (``paper_1@circle``): the reference is part of the scenario axis.
 PAPER_TRAJECTORY = "line"
+#: The paper's plant, the wheel-space model (8). A job on another plant (``plant=mujoco``, docs/model.md §13) is
+#: reported under ``<scenario>@<plant>`` (``paper_1@mujoco``): the plant is part of the scenario axis, so each
+#: plant gets its Table 4 and verdicts, side by side (:meth:`ReportData.plant_pairs`).
+PAPER_PLANT = "wheel"
 #: Override keys that do not tell two jobs apart (launcher, output dirs, plotting).
 _IGNORED_KEYS = ("experiment", "launcher", "cluster", "run.plots", "run.progress")
 
@@ -71,10 +75,21 @@ class Job:
         return chosen[-1] if chosen else PAPER_TRAJECTORY
 
     @cached_property
-    def scenario(self) -> str:
+    def plant(self) -> str:
+        """The plant the job ran on: its saved config's ``plant.name`` (the wheel plant when it has none)."""
+        return str(self.setting("plant.name", PAPER_PLANT))
+
+    @cached_property
+    def scenario_on_paper_plant(self) -> str:
         """The scenario's name, ``@<trajectory>`` appended on a reference other than the paper's line."""
         name = str(self.summary.get("scenario"))
         return name if self.trajectory == PAPER_TRAJECTORY else f"{name}@{self.trajectory}"
+
+    @cached_property
+    def scenario(self) -> str:
+        """:attr:`scenario_on_paper_plant`, ``@<plant>`` appended on a plant other than the wheel plant."""
+        name = self.scenario_on_paper_plant
+        return name if self.plant == PAPER_PLANT else f"{name}@{self.plant}"
 
     @property
     def label(self) -> str:
@@ -149,6 +164,15 @@ class ReportData:
     def scenarios(self) -> list[str]:
         names = sorted({j.scenario for j in self.jobs})
         return ([PAPER_SCENARIO] if PAPER_SCENARIO in names else []) + [n for n in names if n != PAPER_SCENARIO]
+
+    def plant_pairs(self) -> list[tuple[str, str, str]]:
+        """``(scenario on the wheel plant, the same scenario on another plant, that plant)`` for every scenario the
+        jobs ran on both, in :attr:`scenarios` order."""
+        on_paper = {j.scenario for j in self.jobs if j.plant == PAPER_PLANT}
+        pairs = {(j.scenario_on_paper_plant, j.scenario, j.plant) for j in self.jobs
+                 if j.plant != PAPER_PLANT and j.scenario_on_paper_plant in on_paper}
+        order = self.scenarios
+        return sorted(pairs, key=lambda p: (order.index(p[0]), p[2]))
 
     def keys(self, scenario: str | None = None) -> list[str]:
         """Controller keys in the paper's order."""
@@ -269,7 +293,7 @@ def _assign_keys(jobs: list[Job]) -> None:
     """A job's key is its controller, plus the overrides that set it apart when a controller has several jobs
     on one scenario (e.g. a gain sweep)."""
     per_job = {id(j): [o for o in j.overrides if not _ignored(o)
-                       and _override_key(o) not in ("controller", "scenario", "trajectory")] for j in jobs}
+                       and _override_key(o) not in ("controller", "scenario", "trajectory", "plant")] for j in jobs}
     common = set.intersection(*(set(v) for v in per_job.values())) if per_job else set()
     groups: dict[tuple[str, str], list[Job]] = {}
     for j in jobs:

@@ -473,8 +473,8 @@ class ScenarioFigures:
         errors = []
         for i, (row, job) in enumerate(zip(axes, observers)):
             s = self._s(job)
-            d_hat = s["d_hat_ndo_right"] + s["d_hat_nn_right"]
-            what = "NDO + NN" if S.has_nn(s) else "NDO"
+            d_hat = S.d_hat(s, "right")
+            what = " + ".join(S.estimate_names(s)) or "none"
             for ax, full in zip(row, (False, True)):
                 win = S.window_mask(s["t"], t0, t1) if full else np.ones(len(s["t"]), bool)
                 idx = np.flatnonzero(win) if full else thin(d_hat)
@@ -512,9 +512,10 @@ class ScenarioFigures:
         shares = []
         for i, (row, job) in enumerate(zip(axes, nnos)):
             s = self._s(job)
-            parts = (("d_true_right", "true d", {**REFERENCE_STYLE, "lw": 0.6}),
-                     ("d_hat_ndo_right", "d̂_NDO", {"color": PART_COLORS["ndo"], "lw": 0.9}),
-                     ("d_hat_nn_right", "d̂_NN", {"color": PART_COLORS["nn"], "lw": 1.1}))
+            nn_part = ("d_hat_nn_right", "d̂_NN", {"color": PART_COLORS["nn"], "lw": 1.1})
+            parts = tuple(part for part in (("d_true_right", "true d", {**REFERENCE_STYLE, "lw": 0.6}),
+                                            ("d_hat_ndo_right", "d̂_NDO", {"color": PART_COLORS["ndo"], "lw": 0.9}),
+                                            nn_part) if part[0] in s)  # a network without an NDO: no NDO part
             for ax, full in zip(row[:2], (False, True)):
                 win = S.window_mask(s["t"], t0, t1) if full else np.ones(len(s["t"]), bool)
                 for z, (channel, label, kw) in enumerate(parts):
@@ -522,7 +523,7 @@ class ScenarioFigures:
                     idx = np.flatnonzero(win) if full else thin(y)
                     ax.plot(s["t"][idx], y[idx], label=label, zorder=2 + z, **kw)
             idx = thin(s["d_hat_nn_right"])
-            row[2].plot(s["t"][idx], s["d_hat_nn_right"][idx], label="d̂_NN", **parts[2][2])
+            row[2].plot(s["t"][idx], s["d_hat_nn_right"][idx], label="d̂_NN", **nn_part[2])
             for ax in row:
                 ax.axhline(0, color="0.3", lw=0.5)
                 ax.grid(alpha=0.3)
@@ -1049,12 +1050,13 @@ def _start_forked(data, out_dir, styles, tasks, n: int):
     return procs, result_q, tasks
 
 
-def _run_forked(data, out_dir, styles, tasks, n: int) -> list:
-    return _collect(*_start_forked(data, out_dir, styles, tasks, n))
+def _run_forked(data, out_dir, styles, tasks, n: int, done=lambda: None) -> list:
+    return _collect(*_start_forked(data, out_dir, styles, tasks, n), done=done)
 
 
-def _collect(procs, result_q, tasks) -> list:
-    """The results of the figure processes, in task order (a task's failure raised here); the processes ended."""
+def _collect(procs, result_q, tasks, done=lambda: None) -> list:
+    """The results of the figure processes, in task order (a task's failure raised here; ``done()`` called as
+    each arrives); the processes ended."""
     import queue
 
     results: list = [None] * len(tasks)
@@ -1071,6 +1073,7 @@ def _collect(procs, result_q, tasks) -> list:
                 raise RuntimeError(f"figure {tasks[i][1]} of {tasks[i][0]} failed:\n{error}")
             results[i] = result
             pending -= 1
+            done()
     finally:
         for p in procs:
             p.join(timeout=5)
@@ -1093,18 +1096,21 @@ def _warm_up() -> None:
     plt.close(fig)
 
 
-def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False
-                 ) -> tuple[dict[str, list[Figure]], list[str]]:
+def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False,
+                 done=lambda: None) -> tuple[dict[str, list[Figure]], list[str]]:
     """The report's figures (:func:`figure_tasks`; every one with ``every``), per scenario (the figure across
     scenarios under :data:`ACROSS`, first), drawn in forked processes when the machine has several cores;
-    returns them and notes on what was skipped."""
-    return start_figures(data, out_dir, styles, every)()
+    returns them and notes on what was skipped. ``done()`` is called as each figure task ends (the report's
+    progress bar)."""
+    return start_figures(data, out_dir, styles, every, done)()
 
 
-def start_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False):
+def start_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False,
+                  done=lambda: None):
     """Start drawing :func:`make_figures`' figures in forked processes (the caller goes on with its tables
     meanwhile); returns the function that waits for them and returns what :func:`make_figures` returns. With one
-    process the figures are drawn when that function is called."""
+    process the figures are drawn when that function is called. ``done()`` is called as each figure task's
+    result is gathered."""
     styles = styles or StyleBook((j.controller for j in data.jobs), data.displays())
     tasks = figure_tasks(data, every)
     for scenario in data.scenarios:  # read the series (and bands) once, before any fork
@@ -1113,8 +1119,16 @@ def start_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = No
     if n > 1:
         _warm_up()
         started = _start_forked(data, Path(out_dir), styles, tasks, n)
-        return lambda: _gather(data, tasks, _collect(*started))
-    return lambda: _gather(data, tasks, [make_one(data, Path(out_dir), styles, task) for task in tasks])
+        return lambda: _gather(data, tasks, _collect(*started, done=done))
+
+    def draw_here():
+        results = []
+        for task in tasks:
+            results.append(make_one(data, Path(out_dir), styles, task))
+            done()
+        return _gather(data, tasks, results)
+
+    return draw_here
 
 
 def _gather(data: ReportData, tasks, results) -> tuple[dict[str, list[Figure]], list[str]]:

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ddmr_cli.engine.results import d_hat, estimate_names  # noqa: F401  (the report reads a run's estimates)
+
 #: The high-pass cutoff of the hf_fraction metric when neither the job's config nor the engine says otherwise.
 DEFAULT_HF_CUTOFF = 10.0
 
@@ -49,14 +51,21 @@ def nominal_input_inverse(robot_cfg: dict | None):
         return None
 
 
+
+
+def _channel(series: dict, name: str) -> np.ndarray:
+    """A series channel, zero when the run's controller does not have it."""
+    return np.asarray(series[name]) if name in series else np.zeros(len(series["u_right"]))
+
+
 def nn_share(series_list: list[dict], g_inv=None) -> dict:
     """The NN's share of a job's disturbance estimate and of its voltage, over the given kept seeds and both
     wheels: ``mean |d̂_NN| / mean |d̂_NDO + d̂_NN|``, and the voltage the NN term adds, ``g^-1 d̂_NN`` (eq. 17
     subtracts ``d̂``), against the mean |u| applied."""
     ndo, nn, u, u_nn = [], [], [], []
     for s in series_list:
-        d_ndo = np.column_stack([s["d_hat_ndo_right"], s["d_hat_ndo_left"]])
-        d_nn = np.column_stack([s["d_hat_nn_right"], s["d_hat_nn_left"]])
+        d_ndo = np.column_stack([_channel(s, "d_hat_ndo_right"), _channel(s, "d_hat_ndo_left")])
+        d_nn = np.column_stack([_channel(s, "d_hat_nn_right"), _channel(s, "d_hat_nn_left")])
         ndo.append(d_ndo)
         nn.append(d_nn)
         u.append(np.column_stack([s["u_right"], s["u_left"]]))

@@ -68,18 +68,20 @@ def pm(mean, sd, sd_digits: int = 2, max_digits: int = 6) -> str:
 
 
 def md_table(headers: Sequence[str], rows: Iterable[Sequence], align: str | None = None) -> str:
-    """A GitHub-flavoured markdown table (first column left-aligned, the others right-aligned)."""
+    """A GitHub-flavoured markdown table: pandas ``DataFrame.to_markdown`` (tabulate's ``pipe`` format), the cells
+    as given (no number parsing), numbers right-aligned and text left-aligned unless ``align`` (``"lrr"``) says."""
+    import pandas as pd
+
     def cell(v) -> str:
         return str(v).replace("|", "\\|").replace("\n", " ")
 
-    rows = [list(r) for r in rows]
+    rows = [[cell(v) for v in r] for r in rows]
     if align is None:  # numbers right-aligned, text left-aligned
-        align = "".join("r" if rows and all(_NUMERIC.match(str(r[i])) for r in rows) else "l"
+        align = "".join("r" if rows and all(_NUMERIC.match(r[i]) for r in rows) else "l"
                         for i in range(len(headers)))
-    sep = ["---" if a == "l" else "---:" for a in align]
-    lines = ["| " + " | ".join(map(cell, headers)) + " |", "| " + " | ".join(sep) + " |"]
-    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
-    return "\n".join(lines)
+    frame = pd.DataFrame(rows, columns=range(len(headers))) if rows else pd.DataFrame(columns=range(len(headers)))
+    return frame.to_markdown(index=False, headers=[cell(h) for h in headers], disable_numparse=True,
+                             colalign=["right" if a == "r" else "left" for a in align])
 
 
 def unit(metric: str) -> str:

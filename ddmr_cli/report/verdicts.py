@@ -375,6 +375,7 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
     summary = [summary_line(data, c, scenario, reading) for c in results for (scenario, reading) in c.overall]
     not_checked = [c for c in results if not c.checks]
     out += ["### Summary", ""] + (summary or ["- no claim could be checked with these jobs"]) + [""]
+    out += plant_comparison(data, results)
     for c in results:
         if not c.checks:
             continue
@@ -423,6 +424,38 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
                 + "; ".join(c.title for c in not_checked) + ".", "",
                 "Why: " + "; ".join(reasons) + ".", ""]
     return "\n".join(out)
+
+
+def plant_comparison(data: ReportData, results: list[ClaimResult]) -> list[str]:
+    """The claims on both plants (docs/model.md §13): each claim's overall verdict on the wheel plant beside its
+    verdict on another plant, per scenario and NNO reading, and whether it changes (its category, not its reason);
+    no lines when the jobs ran on one plant."""
+    pairs = data.plant_pairs()
+    if not pairs:
+        return []
+    rows, changed = [], []
+    for c in results:
+        readings = list(dict.fromkeys(reading for (_, reading) in c.overall))
+        for wheel, other, plant in pairs:
+            for reading in readings:
+                a, b = c.overall.get((wheel, reading)), c.overall.get((other, reading))
+                if a is None and b is None:
+                    continue
+                change = a is None or b is None or category(a) != category(b)
+                if change:
+                    changed.append(f"{c.title} ({wheel}, {data.label(reading)}: {category(a) if a else 'not checked'}"
+                                   f" -> {category(b) if b else 'not checked'} on {plant})")
+                rows.append([c.title, wheel, plant, data.label(reading), _bold(a) if a else "not checked",
+                             _bold(b) if b else "not checked", "**changes**" if change else "same"])
+    plants = ", ".join(dict.fromkeys(p for _, _, p in pairs))
+    return ["### The claims on both plants", "",
+            f"The same controllers, seeds and scenarios on the paper's wheel-space plant (8) and on {plants} "
+            f"(docs/model.md §13: a rigid-body robot on a heightfield, terrain from the physics; scenario "
+            f"`<scenario>@{pairs[0][2]}` in every table of this report). Each claim's overall verdict on each plant:", "",
+            md_table(["Claim", "Scenario", "Plant", "SMC-NDO-NNO reading", "On the wheel plant", "On that plant", "Verdict"],
+                     rows), "",
+            ("Claims whose verdict changes: " + "; ".join(changed) + ".") if changed else
+            "No claim's verdict changes between the plants.", ""]
 
 
 def _numbers(c: ClaimResult, scenario: str, reading: str, metric: str) -> str:

@@ -12,7 +12,7 @@
   bytes differ from its digest is kept, renamed ``<name>.changed``.
 - :func:`verify`: a summary's files are there with the recorded sizes and hashes and, when resuming, the summary
   is unchanged (its seal) and was written with the same output options (``run.plots``).
-- :class:`DirLock`: an exclusive ``fcntl`` lock on ``<dir>/.ddmr.lock`` for the whole ``ddmr run``; a second
+- :class:`DirLock`: an exclusive lock (filelock: ``flock``) on ``<dir>/.ddmr.lock`` for the whole ``ddmr run``; a second
   writer is refused with the holder's pid, host and command, and so is a dir inside, or containing, the dir of
   another run or sweep (a ``.ddmr.lock`` above or below it), or a single run into a sweep's dir and back.
 - :func:`inside`: a path resolved (symlinks followed) lies strictly under the dir that owns it.
@@ -395,19 +395,21 @@ _SWEEP_MARKS = ("sweep_plan.json", "multirun.yaml")
 
 
 def _held(directory: Path) -> dict | None:
-    """The holder of ``directory``'s lock while another process holds it, else None (a finished run's dir)."""
-    import fcntl
+    """The holder of ``directory``'s lock while another process holds it, else None (a finished run's dir; or a
+    lock file this process may not open for writing, which it cannot probe)."""
+    from filelock import FileLock, Timeout
 
+    path = Path(directory) / LOCK
+    if not path.is_file():
+        return None
+    probe = FileLock(path, timeout=0)
     try:
-        fd = os.open(Path(directory) / LOCK, os.O_RDONLY)
+        probe.acquire()
+    except Timeout:
+        return read_holder(directory) or {}
     except OSError:
         return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except OSError:
-        return read_holder(directory) or {}
-    finally:
-        os.close(fd)
+    probe.release()
     return None
 
 
@@ -448,8 +450,9 @@ def tree_conflict(directory: Path, kind: str) -> str | None:
 
 
 class DirLock:
-    """An exclusive lock on an output dir for as long as the ``with`` block lasts (``fcntl.flock`` on
-    ``<dir>/.ddmr.lock``, released by the kernel when the process dies, so a killed run leaves no stale lock).
+    """An exclusive lock on an output dir for as long as the ``with`` block lasts (``filelock.FileLock`` on
+    ``<dir>/.ddmr.lock``: an ``flock`` the kernel releases when the process dies, so a killed run leaves no stale
+    lock; the file stays, marking the dir as a run's or a sweep's, and records its holder).
 
     With ``kind`` (``"run"`` or ``"sweep"``) the lock covers the tree: once it holds its own lock it refuses a
     dir inside or containing another run's or sweep's dir (:func:`tree_conflict`); as every writer takes its
@@ -462,48 +465,44 @@ class DirLock:
     def __init__(self, directory: Path, kind: str | None = None, name: str = LOCK) -> None:
         self.directory = Path(directory)
         self.kind, self.name = kind, name
-        self.fd: int | None = None
+        self.lock = None
 
     def __enter__(self) -> "DirLock":
-        import fcntl
+        from filelock import FileLock, Timeout
 
         path = self.directory / self.name
         made = [p for p in [self.directory, *self.directory.parents] if not os.path.lexists(p)]
         existed = os.path.lexists(path)
+        lock = FileLock(path, timeout=0)  # never waits: a held lock is refused at once
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-        except OSError as exc:
-            raise fault(exc) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            os.close(fd)
-            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise fault(exc) from None
+            lock.acquire()
+        except Timeout:
             raise LockedError(self.directory, f"in use by {_describe(read_holder(self.directory, self.name))}; wait "
                                               "for it to finish or choose another output dir") from None
+        except OSError as exc:
+            raise fault(exc) from None
         conflict = tree_conflict(self.directory, self.kind) if self.kind else None
         if conflict is not None:
+            lock.release()
             if not existed:
                 path.unlink(missing_ok=True)
-            os.close(fd)
             for made_dir in made:  # deepest first
                 _rmdir_empty(made_dir)
             raise FaultError(self.directory, conflict)
-        try:
-            os.ftruncate(fd, 0)
-            os.write(fd, (json.dumps(_holder()) + "\n").encode())
+        try:  # another descriptor of the file: flock belongs to filelock's, which stays open
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(json.dumps(_holder()) + "\n")
         except OSError as exc:
-            os.close(fd)
+            lock.release()
             raise FaultError(path, exc.strerror or str(exc)) from None
-        self.fd = fd
+        self.lock = lock
         return self
 
     def __exit__(self, *exc) -> None:
-        if self.fd is not None:
-            os.close(self.fd)  # closing releases the flock
-            self.fd = None
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
 
 
 def read_holder(directory: Path, name: str = LOCK) -> dict | None:

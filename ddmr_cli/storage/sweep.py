@@ -310,36 +310,32 @@ def _fmt(value: Any) -> str:
 
 
 def summary_lines(jobs: "pd.DataFrame", keys: list[str], units: dict[str, str]) -> list[str]:
-    """The terminal summary: one row per job, swept keys and headline metrics, units in the header."""
+    """The terminal summary: one row per job, swept keys and headline metrics, units in the header; a job that did
+    not complete shows its status and error in the last column. Aligned by pandas ``DataFrame.to_markdown`` in
+    tabulate's ``plain`` format (text left, numbers right, the cells as formatted here)."""
     import pandas as pd
 
     label_keys = ["controller", "scenario", *[k for k in keys if k not in _BASE_COLUMNS]]
     header = [*(f"{k} [{units[k]}]" if units.get(k) else k for k in label_keys), "runs", "diverged"]
     metric_header = [f"{m} [{io.unit_of(m)}]" for m in io.HEADLINE]
-    header += [f"{metric_header[0]} (mean +- sd)", *metric_header[1:]]
+    header += [f"{metric_header[0]} (mean +- sd)", *metric_header[1:], ""]
     rows = []
     for _, job in jobs.iterrows():
         cells = [_fmt(job.get(k)) for k in label_keys]
         if job["status"] != "complete":
             error = job.get("error") if isinstance(job.get("error"), str) else ""
-            rows.append((cells, f"{job['status']} {error}".strip()))
+            rows.append(cells + [""] * (len(header) - len(cells) - 1) + [f"{job['status']} {error}".strip()])
             continue
         first = io.HEADLINE[0]
-        cells += [_fmt(int(job["runs"])), _fmt(int(job["diverged"])),
-                  f"{_fmt(job[f'{first}_mean'])} +- {_fmt(job[f'{first}_sd'])}",
-                  *(_fmt(job[f"{m}_mean"]) for m in io.HEADLINE[1:])]
-        rows.append((cells, None))
-    widths = [max([len(h)] + [len(cells[i]) for cells, _ in rows if i < len(cells)]) for i, h in enumerate(header)]
+        rows.append(cells + [_fmt(int(job["runs"])), _fmt(int(job["diverged"])),
+                             f"{_fmt(job[f'{first}_mean'])} +- {_fmt(job[f'{first}_sd'])}",
+                             *(_fmt(job[f"{m}_mean"]) for m in io.HEADLINE[1:]), ""])
     numeric = [k in jobs and pd.api.types.is_numeric_dtype(jobs[k].dtype) for k in label_keys]
-    right = numeric + [True] * (len(header) - len(label_keys))
-
-    def line(cells: list[str]) -> str:
-        return "  ".join(c.rjust(w) if r else c.ljust(w) for c, w, r in zip(cells, widths, right)).rstrip()
-
-    out = ["  " + line(header)]
-    for cells, note in rows:
-        out.append("  " + (line(cells) if note is None else f"{line(cells)}  {note}"))
-    return out
+    right = numeric + [True] * (len(header) - len(label_keys) - 1) + [False]
+    text = pd.DataFrame(rows, columns=range(len(header))).to_markdown(
+        index=False, headers=header, tablefmt="plain", disable_numparse=True,
+        colalign=["right" if r else "left" for r in right])
+    return ["  " + line.rstrip() for line in text.splitlines()]
 
 
 def aggregate(sweep_dir: Path, unit_of: Callable[[str], str | None] | None = None) -> SweepState:

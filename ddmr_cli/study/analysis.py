@@ -135,14 +135,16 @@ def sobol(rows: "pd.DataFrame", design: Design, resamples: int, seed: int) -> "p
     return pd.DataFrame(out)
 
 
-def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """Wilson score interval of a proportion."""
+def wilson(successes: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a proportion at confidence ``level``: scipy's
+    ``binomtest(k, n).proportion_ci(method="wilson")`` (the exact normal quantile, 1.959964 for 95 %); NaN for
+    ``n == 0``, which scipy refuses."""
+    from scipy.stats import binomtest
+
     if n == 0:
         return math.nan, math.nan
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    ci = binomtest(int(successes), int(n)).proportion_ci(confidence_level=level, method="wilson")
+    return float(ci.low), float(ci.high)
 
 
 def holds(rows: "pd.DataFrame") -> "pd.DataFrame":

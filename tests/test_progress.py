@@ -1,0 +1,125 @@
+"""Progress output (issue 29): bars on a terminal, whole lines in a log, nothing with run.progress=false; the
+compile notice said exactly when the kernel cache has no compiled copy; the sweep bar counts job summaries."""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+import types
+
+import pytest
+
+from ddmr_cli import progress
+from ddmr_cli.engine import kernels
+
+
+class _Tty(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_off_a_terminal_each_refresh_is_one_whole_line():
+    out = io.StringIO()
+    with progress.bar(4, "validating", "jobs", stream=out, delay=0) as b:
+        for _ in range(4):
+            b.update(1)
+    text = out.getvalue()
+    assert "\r" not in text
+    lines = text.splitlines()
+    assert lines[0].startswith("validating: 0/4 jobs (0 %)")
+    assert lines[-1].startswith("validating: 4/4 jobs (100 %)")
+    assert all(line.strip() for line in lines)
+    assert len(lines) == len(set(lines))  # the last state once, though tqdm draws it again on close
+
+
+def test_on_a_terminal_the_bar_redraws_in_place():
+    out = _Tty()
+    with progress.bar(2, "sweep", "jobs", stream=out, delay=0) as b:
+        b.update(2)
+    assert "\r" in out.getvalue() and "2/2" in out.getvalue()
+
+
+def test_progress_false_prints_nothing(capsys):
+    with progress.bar(3, "sweep", "jobs", enabled=False) as b, progress.Ticker(b):
+        b.update(3)
+    list(progress.each(range(3), 3, "validating", enabled=False))
+    assert capsys.readouterr().err == ""
+
+
+def test_the_sweep_bar_counts_summaries_and_resumed_jobs(tmp_path, capsys):
+    dirs = ["a", "b", "c"]
+    for d in dirs:
+        (tmp_path / d).mkdir()
+    (tmp_path / "a" / "summary.json").write_text("{}")  # resumed: complete before the sweep starts
+    with progress.SweepWatch(tmp_path, dirs, "summary.json") as watch:
+        assert watch._bar.n == 1
+        (tmp_path / "b" / "summary.json").write_text("{}")
+        (tmp_path / "c" / "summary.json").write_text("{}")
+    assert watch._bar.n == 3 and watch._bar.disable  # counted, then closed
+    assert capsys.readouterr().err == ""  # over within progress.DELAY: never drawn
+
+
+def _fake_stepper(tmp_path):
+    class Function:
+        def __init__(self):
+            self.overloads = {}
+
+        def compile(self, signature):
+            self.overloads[signature] = object()
+
+    return types.SimpleNamespace(run_chunk=Function(), __file__=str(tmp_path / "ddmr_stepper_fake.py"))
+
+
+@pytest.mark.skipif(not kernels.AVAILABLE, reason="numba not installed")
+def test_the_compile_notice_is_given_only_when_no_compiled_copy_is_cached(tmp_path, monkeypatch):
+    monkeypatch.delenv("NUMBA_DISABLE_JIT", raising=False)
+    if not kernels.jit_enabled():
+        pytest.skip("numba's JIT is disabled")
+    module = _fake_stepper(tmp_path)
+    monkeypatch.setattr(kernels, "stepper_for", lambda law, identity="": module)
+    calls = []
+    kernels.compiled_run_chunk("fake", (1.0,), compiling=lambda: calls.append(1))
+    assert calls == [1]  # nothing cached: compiled now, said first
+    (tmp_path / "__pycache__").mkdir()
+    (tmp_path / "__pycache__" / "ddmr_stepper_fake.run_chunk-1.py312.nbi").write_text("")
+    module.run_chunk.overloads.clear()
+    kernels.compiled_run_chunk("fake", (1.0,), compiling=lambda: calls.append(2))
+    assert calls == [1]  # a cache entry: loaded, nothing said
+
+
+def _ddmr(args, cwd, cache=None, delay=None):
+    env = {**os.environ, **({"DDMR_CACHE_DIR": str(cache)} if cache is not None else {}),
+           **({"DDMR_PROGRESS_DELAY": str(delay)} if delay is not None else {})}
+    return subprocess.run([sys.executable, "-m", "ddmr_cli.cli.main", *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=600)
+
+
+TINY = ["controller=pid", "run.n_runs=1", "simulation.duration=0.05", "run.plots=false"]
+
+
+@pytest.mark.slow
+def test_a_first_run_says_it_compiles_and_a_second_does_not(tmp_path):
+    first = _ddmr(["run", *TINY, f"hydra.run.dir={tmp_path / 'one'}"], tmp_path, tmp_path / "cache")
+    assert first.returncode == 0, first.stderr
+    assert "ddmr: compiling the step loop for pid (first use only, about 10 s)" in first.stderr
+    assert "pid/paper_1 (1 runs): 50/50 steps (100 %)" in first.stderr  # the step bar (compiling: > 1 s), as lines
+    second = _ddmr(["run", *TINY, f"hydra.run.dir={tmp_path / 'two'}"], tmp_path, tmp_path / "cache")
+    assert second.returncode == 0 and "compiling" not in second.stderr
+    quiet = _ddmr(["run", *TINY, "run.progress=false", f"hydra.run.dir={tmp_path / 'three'}"], tmp_path,
+                  tmp_path / "cold")
+    assert quiet.returncode == 0 and "compiling" not in quiet.stderr and "steps" not in quiet.stderr
+
+
+def test_a_sweep_shows_validation_and_job_progress_as_lines_in_a_log(tmp_path):
+    args = ["run", "-m", *TINY, "scenario=paper_1,paper_2", "run.bands=false", f"hydra.sweep.dir={tmp_path / 's'}",
+            "launcher=basic"]
+    shown = _ddmr(args, tmp_path, delay=0)  # every bar at once, however fast this machine is
+    assert shown.returncode == 0, shown.stderr
+    assert "validating: 0/2 jobs" in shown.stderr  # validation's bar (leave=False: its last state is not kept)
+    assert "sweep: 2/2 jobs (100 %)" in shown.stderr
+    assert "\r" not in shown.stderr
+    quiet = _ddmr([*args[:-2], "run.progress=false", f"hydra.sweep.dir={tmp_path / 'q'}", "launcher=basic"],
+                  tmp_path, delay=0)
+    assert quiet.returncode == 0 and "validating" not in quiet.stderr and "sweep:" not in quiet.stderr
