@@ -189,7 +189,8 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
             from ddmr_cli.plots.run import run_plots
 
             seed = next(iter(result.series))
-            run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR)
+            run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
+                      settle_time=float(cfg.metrics.settle_time))
     return {
         "status": "complete",
         "controller": result.controller,

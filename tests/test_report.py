@@ -230,7 +230,8 @@ FIGURES = ("fig03_terrain", "fig04_trajectory", "fig05_deviation", "fig06_pose_e
 def test_figures_are_valid_pngs(figure_report):
     figures = sorted((figure_report / "figures").glob("*.png"))
     names = {p.name for p in figures}
-    assert names == {f"{s}_{stem}.png" for s in SCENARIOS for stem in FIGURES} | {"paper_2_fig10_environment.png"}
+    assert names == ({f"{s}_{stem}.png" for s in SCENARIOS for stem in FIGURES}
+                     | {"paper_2_fig10_environment.png", "table4_vs_paper.png"})
     import matplotlib.image
 
     for path in figures:
@@ -246,7 +247,9 @@ def test_captions_state_paper_and_ours(figure_report):
     figures = _section(md, "Figures")
     assert "Okabe" in figures  # the colour legend
     captions = re.findall(r"^\*\*(.+?)\.\*\* (.+)$", figures, flags=re.M)
-    assert len(captions) == len(list((figure_report / "figures").glob("*.png")))
+    # every figure but Table 4 beside the paper's (in the Table 4 section) has its caption here
+    assert len(captions) == len(list((figure_report / "figures").glob("*.png"))) - 1
+    assert "![Our Table 4 beside the paper's](figures/table4_vs_paper.png)" in _section(md, "Table 4: tracking")
     for title, caption in captions:
         assert "Paper —" in caption and "Ours" in caption, title
     scenario_1 = figures.split("### paper_1", 1)[1].split("### paper_2", 1)[0]
@@ -325,9 +328,10 @@ def test_partial_sweep(mini_sweep, tmp_path):
     v = _read(out / "tables" / "verdicts.csv")
     assert not ((v["scenario"] == "paper_2") & (v["reference"] == "smc_ndo")).any()
     assert ((v["scenario"] == "paper_1") & (v["claim"] == "vs_smc_ndo")).any()
-    # no time series common to every job: only the spread plots, with a note
+    # no time series common to every job: only the figures of the metrics (spread, Table 4 beside the paper's)
     assert sorted(p.name for p in (out / "figures").glob("*.png")) == ["paper_1_deviation_spread.png",
-                                                                       "paper_2_deviation_spread.png"]
+                                                                       "paper_2_deviation_spread.png",
+                                                                       "table4_vs_paper.png"]
     assert "time-series figures skipped" in md
     _links_resolve(out, md)
     assert not (sweep / "report").exists()  # --out elsewhere: nothing written into the sweep

@@ -142,3 +142,32 @@ def test_window_helpers():
     assert S.mean_in(t, y, 5.0) == pytest.approx(3.0)
     assert S.range_in(t, y, 0.0, 5.0, q=(0, 100)) == pytest.approx((1.0, 1.0))
     assert math.isnan(S.mean_in(t, y, 20.0))
+
+
+def test_run_plot_axes_fit_the_steady_state_and_zoom_into_it():
+    from ddmr_cli.plots.common import figure
+    from ddmr_cli.plots.run import ZOOM_WIDTH, _fit, _zoom
+
+    t = np.linspace(0, 15, 15001)
+    y = np.where(t < 3.0, 50.0 * np.exp(-t), 0.0) + 0.01 * np.sin(7 * t)  # a start-up transient, then 10 um
+    ax = figure().subplots()
+    assert _fit(ax, t, [y], settle=3.0)  # the transient is off-scale
+    lo, hi = ax.get_ylim()
+    assert -0.02 < lo < -0.01 and 0.01 < hi < 0.02
+    assert not _fit(ax, t, [y], settle=0.0)  # the whole run is the steady state: nothing off-scale
+    t0, t1 = _zoom(t, 3.0)
+    assert t1 - t0 == pytest.approx(ZOOM_WIDTH) and 3.0 < t0 < t1 < 15.0
+    assert _zoom(t, 20.0)[0] >= 0.0  # no steady state: the zoom stays in the run
+
+
+def test_figure_eight_covers_a_whole_eight_in_the_default_duration():
+    import ddmr_cli
+    from hydra.utils import instantiate
+
+    cfg = ddmr_cli.compose_config(["trajectory=figure_eight"])
+    traj = instantiate(cfg.trajectory)
+    t = np.linspace(0.0, float(cfg.simulation.duration), 3001)
+    xy = np.array([traj.reference(float(s))[:2] for s in t])
+    a = float(cfg.trajectory.amplitude)
+    assert xy[:, 0].min() < -0.99 * a and xy[:, 0].max() > 0.99 * a  # both lobes
+    assert np.hypot(*xy[-1]) < 1e-6 * a  # back at the start: the eight is closed

@@ -22,7 +22,7 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, ClassVar, Sequence
+from typing import Callable, ClassVar, NamedTuple, Sequence
 
 from omegaconf import DictConfig
 
@@ -38,6 +38,15 @@ class Plan:
 
     jobs: list[dict]
     session: list[str]
+
+
+class Validated(NamedTuple):
+    """What :func:`_validate_jobs` found besides the refusals it raises."""
+
+    #: the simulated run-steps of all the jobs (``run.n_runs`` times the steps of each)
+    work: int
+    #: one-line warnings, each once (an empty steady-state window)
+    warnings: tuple[str, ...]
 
 
 class Mode:
@@ -57,8 +66,13 @@ class Mode:
     def preflight(self, out_dir: Path, jobs: Sequence[dict]) -> None:
         """Refuse (``FaultError``) an output dir where this launch would overwrite what ddmr did not write."""
 
+    #: one-line warnings from planning (:func:`_validate_jobs`), printed once the launch is not refused
+    warnings: tuple[str, ...] = ()
+
     def before_launch(self, out_dir: Path, jobs: Sequence[dict]) -> None:
-        """Under the output dir's lock, just before Hydra starts."""
+        """Under the output dir's lock, just before Hydra starts: the planning's warnings."""
+        for warning in self.warnings:
+            print(f"ddmr: warning: {warning}", file=sys.stderr)
 
     def finish(self, out_dir: Path, jobs: Sequence[dict]) -> int:
         """The exit status, read from the output dir as it is on disk."""
@@ -74,13 +88,16 @@ class Mode:
 def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: Callable[[list[str]], DictConfig]):
     """Compose and validate every job (the model is built: derived numbers fail here); then the memory budget
     of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
-    job's overrides."""
+    job's overrides. Returns the simulated run-steps in all and the warnings (each once): an empty steady-state
+    window."""
     from ddmr_cli import progress
     from ddmr_cli.config import budget
-    from ddmr_cli.config.validate import check_additions, job_estimate, message, validate_config
+    from ddmr_cli.config.validate import (check_additions, job_estimate, message, steady_state_warning,
+                                          validate_config)
     from ddmr_cli.errors import ConfigError
 
     largest, work = None, 0
+    warned: list[str] = []
     shown = multirun and bool(base.run.get("progress", True))
     for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown, leave=False):
         current = job["overrides"]
@@ -93,6 +110,9 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
         except (MemoryError, OverflowError) as exc:  # a value too large to validate
             raise UsageError(f"{' '.join(current)}: too large to plan ({type(exc).__name__}); lower the largest "
                              f"value") from None
+        warning = steady_state_warning(sim)
+        if warning is not None and warning not in warned:  # once per distinct message, not once per job
+            warned.append(warning)
         est = job_estimate(cfg, sim)
         largest = est if largest is None or est.total > largest.total else largest
         work += int(cfg.run.n_runs) * sim.n_steps
@@ -100,7 +120,7 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
         at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
                                  len(jobs))
         budget.check(largest, base.run.get("max_memory_gb"), at_once, (base.get("cluster") or {}).get("mem_gb"))
-    return work
+    return Validated(work, tuple(warned))
 
 
 #: a sweep on the default launcher (``launcher=local``, joblib) of at most this many jobs and this many simulated
@@ -128,7 +148,7 @@ class SingleRun(Mode):
 
     def plan(self, base, overrides, parsed, compose):
         jobs = [{"dir": "", "overrides": list(overrides)}]
-        _validate_jobs(jobs, base, False, compose)
+        self.warnings = _validate_jobs(jobs, base, False, compose).warnings
         return Plan(jobs, [])
 
     def preflight(self, out_dir, jobs):
@@ -164,7 +184,7 @@ class Sweep(Mode):
         # share one composition per set of group choices; the launcher is left out of the job dirs' names and of
         # the config hash: the same dirs, the same numbers
         session = ["launcher=basic"] if small_local_sweep(base, parsed, len(jobs), 0) else []
-        work = _validate_jobs(jobs, base, True, lambda job: compose([*job, *session]))
+        work, self.warnings = _validate_jobs(jobs, base, True, lambda job: compose([*job, *session]))
         return Plan(jobs, session if small_local_sweep(base, parsed, len(jobs), work) else [])
 
     def preflight(self, out_dir, jobs):
@@ -186,6 +206,7 @@ class Sweep(Mode):
 
         jobdir.clean_leftovers(out_dir, [job["dir"] for job in jobs])
         print(f"ddmr: sweep of {len(jobs)} jobs validated -> {out_dir}", file=sys.stderr)
+        super().before_launch(out_dir, jobs)
 
     def watch(self, out_dir, jobs, enabled):
         """A bar over the jobs, advanced as their summaries appear (:class:`ddmr_cli.progress.SweepWatch`)."""

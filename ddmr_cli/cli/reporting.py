@@ -11,7 +11,7 @@ from ddmr_cli.cli.usage import EXIT_FAILED, EXIT_USAGE, fail
 
 
 def write_report(path: Path, out: str | None, margin: float | None, failure: int = EXIT_USAGE,
-                 figures: bool = True, progress: bool = True) -> int:
+                 figures: bool = True, progress: bool = True, all_figures: bool = False) -> int:
     """Write the report of ``path`` into ``out`` (default ``path/report``); the exit status (``failure`` when
     there is nothing to report)."""
     from ddmr_cli.errors import DDMRError
@@ -26,7 +26,7 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
             final = Path(out).expanduser().resolve() if out is not None else Path(path).expanduser().resolve() / "report"
             written = staged(final, lambda root: tuning.build(path, root, margin))
         else:
-            written = build_report(path, out, figures=figures, progress=progress,
+            written = build_report(path, out, figures=figures, progress=progress, all_figures=all_figures,
                                    **({"margin": margin} if margin is not None else {}))
     except jobdir.FaultError as exc:  # a file-system fault or a refused --out: one line naming the path, exit 1
         print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
@@ -72,6 +72,10 @@ def cmd_report(argv: list[str]) -> int:
                              "claimed improvement (a tie for baseline comparisons)")
     parser.add_argument("--no-figures", action="store_true",
                         help="write report.md and the tables only, without drawing the figures (much faster)")
+    parser.add_argument("--all-figures", action="store_true",
+                        help="every figure of every scenario; by default a scenario on a reference other than the "
+                             "paper's line (paper_1@circle, ...) gets its summary figures only (trajectory, "
+                             "deviation, spread)")
     parser.add_argument("--no-progress", action="store_true",
                         help="no progress bar (by default a bar with an ETA on a terminal, a line every 10 s in a log)")
     args = parser.parse_args(argv)
@@ -89,7 +93,7 @@ def cmd_report(argv: list[str]) -> int:
         print(f"ddmr: reporting the latest sweep under ./outputs: {latest}", file=sys.stderr)
         path = latest
     return write_report(Path(path), args.out, args.margin, figures=not args.no_figures,
-                        progress=not args.no_progress)
+                        progress=not args.no_progress, all_figures=args.all_figures)
 
 
 __all__ = ["write_report", "cmd_report", "Parser"]

@@ -326,6 +326,18 @@ def validate_config(cfg: DictConfig):
     return sim
 
 
+def steady_state_warning(sim) -> str | None:
+    """One line when the steady-state window of a built
+    :class:`~ddmr_cli.engine.simulation.Simulation` is empty (no step at or after ``metrics.settle_time``):
+    every ``<metric>_ss`` is then NaN, and so are the report's steady-state tables, verdicts and realism figures.
+    None when the window has steps."""
+    if int(round(sim.settle_time / sim.dt)) < sim.n_steps:
+        return None
+    return (f"metrics.settle_time={sim.settle_time:g} s is not below simulation.duration={sim.duration:g} s: "
+            f"the steady-state window is empty and every <metric>_ss will be NaN (lower metrics.settle_time or "
+            f"run longer)")
+
+
 def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.Estimate:
     """The memory estimate of a composed config's job (:mod:`ddmr_cli.config.budget`)."""
     kept = kept_seeds(cfg.run) if kept is None else kept
@@ -333,5 +345,5 @@ def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.
 
 
 __all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions", "unknown_key",
-           "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "DerivedError",
-           "KEEP_FORMS"]
+           "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "steady_state_warning",
+           "DerivedError", "KEEP_FORMS"]

@@ -12,13 +12,15 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def build_report(path, out=None, margin=None, figures: bool = True, progress: bool = True) -> Path:
+def build_report(path, out=None, margin=None, figures: bool = True, progress: bool = True,
+                 all_figures: bool = False) -> Path:
     """Build the report of a sweep dir or a run dir; returns the output dir.
 
     ``margin`` is the practical margin of the verdicts (a tie when the 95 % CI of a paired difference lies inside
     it): a :class:`~ddmr_cli.report.stats.Margin`, a length in metres (``1e-4``), or text (``"0.1mm"``, ``"5%"``);
     default 0.1 mm for the metrics in metres and 5 % of the reference's mean for the others. ``figures=False``
-    writes the markdown and every table without drawing a figure (seconds instead of tens of seconds).
+    writes the markdown and every table without drawing a figure (seconds instead of tens of seconds). A scenario
+    on a reference other than the paper's line gets its summary figures only, unless ``all_figures``.
     ``progress``: a bar with an ETA on stderr (a plain line every 10 s when stderr is not a terminal).
 
     Raises
@@ -30,7 +32,7 @@ def build_report(path, out=None, margin=None, figures: bool = True, progress: bo
     """
     from ddmr_cli.report.build import build
 
-    return build(path, out, margin, figures, progress)
+    return build(path, out, margin, figures, progress, all_figures)
 
 
 __all__ = ["build_report"]

@@ -18,7 +18,8 @@ from ddmr_cli.report import verdicts as V
 from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten, load
-from ddmr_cli.report.figures import FIGURE_METHODS, common_seed, make_figures
+from ddmr_cli.report.figures import (ACROSS, common_seed, detailed, fig_table4, figure_tasks, shown_jobs,
+                                     start_figures)
 from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
@@ -57,11 +58,13 @@ class Report:
     moved into, the ``--out`` its markdown names (default ``out``)."""
 
     def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True,
-                 final: Path | None = None, step=None):
+                 final: Path | None = None, step=None, all_figures: bool = False):
         self.data, self.out, self.margin = data, out, margin or Margin()
         self.step = step or (lambda n=1: None)  # advances the report's progress bar
         self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
+        self.all_figures = all_figures  # every figure of every scenario (figures.figure_tasks)
+        self.pending_figures = None  # what start_figures returned: waits for the figures
         self.styles = StyleBook((j.controller for j in data.jobs), data.displays())
         self.tables_dir, self.figures_dir = out / "tables", out / "figures"
         self.md: list[str] = []
@@ -215,6 +218,10 @@ class Report:
         self.add(T.md_table(["Paper row"] + [h for *_, h in T.TABLE4_COLUMNS],
                             [[name] + [T.fmt(v[c]) for _, _, c, _ in T.TABLE4_COLUMNS] for name, v in paper.items()]),
                  "")
+        figure = fig_table4(t4, self.figures_dir, self.styles, self.data.displays()) if self.draw_figures else None
+        if figure is not None:
+            self.add(f"**{figure.title}.** {figure.caption}", "",
+                     f"![{figure.title}]({figure.path.relative_to(self.out).as_posix()})", "")
 
     def verdicts(self) -> None:
         import pandas as pd
@@ -370,7 +377,7 @@ class Report:
             self.add("## Figures", "", "Not drawn (`ddmr report --no-figures`); the tables below hold every number.",
                      "")
             return
-        figures, notes = make_figures(self.data, self.figures_dir, self.styles, done=self.step)
+        figures, notes = self.start_figures()()
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
         shown = self.data.displays()
@@ -384,8 +391,26 @@ class Report:
                  f"time-series figures use the first kept seed common to all its jobs; where the jobs wrote "
                  f"bands.npz, the mean over all seeds and the 5–95 % band are drawn with that seed. Every caption "
                  f"ends with what the paper reports for the figure and what we see.", "")
+        brief = [s for s in self.data.scenarios if not self.all_figures and not detailed(self.data, s)]
+        if brief:
+            self.add(f"Scenarios on a reference other than the paper's line ({', '.join(f'`{s}`' for s in brief)}) "
+                     f"get the summary figures (trajectory, deviation, spread over seeds); `ddmr report "
+                     f"{shlex.quote(str(self.data.path))} --all-figures` draws all of theirs too.", "")
         for scenario, figs in figures.items():
-            self.add(f"### {scenario}", "")
+            self.add(f"### {scenario or 'All scenarios'}", "")
+            if scenario == ACROSS:
+                self.add(*(line for f in figs for line in (
+                    f"**{f.title}.** {f.caption}", "", f"![{f.title}]({f.path.relative_to(self.out).as_posix()})",
+                    "")))
+                continue
+            jobs = [self.data.job(scenario, k) for k in self.data.keys(scenario)]
+            drawn = shown_jobs(jobs)
+            if len(drawn) < len(jobs):
+                where = ("the Realism section above draws every job against each effect" if realism.present(self.data)
+                         else "the first figure draws every job against the setting they differ in")
+                self.add(f"{len(jobs)} jobs on this scenario: the time-series figures draw one per controller ("
+                         + ", ".join(f"`{j.key}`" for j in drawn) + f"); {where}, and every job's numbers are in "
+                         f"{self.link(self.tables_dir / 'statistics.csv')}.", "")
             for f in figs:
                 rel = f.path.relative_to(self.out).as_posix()
                 self.add(f"**{f.title}.** {f.caption}", "", f"![{f.title}]({rel})", "")
@@ -405,9 +430,20 @@ class Report:
 
     def steps(self) -> int:
         """The steps of :meth:`build` for its progress bar: one per section, one per figure task."""
-        return len(self.SECTIONS) + (len(self.data.scenarios) * len(FIGURE_METHODS) if self.draw_figures else 0)
+        return len(self.SECTIONS) + (len(figure_tasks(self.data, self.all_figures)) if self.draw_figures else 0)
+
+    def start_figures(self):
+        """Start drawing the figures (in forked processes while the tables are computed, issue 28), once; returns
+        the function that waits for them (:func:`ddmr_cli.report.figures.start_figures`), each figure task
+        advancing the progress bar (:attr:`step`)."""
+        if self.pending_figures is None:
+            self.pending_figures = start_figures(self.data, self.figures_dir, self.styles, every=self.all_figures,
+                                                 done=lambda: self.step())
+        return self.pending_figures
 
     def build(self) -> Path:
+        if self.draw_figures:
+            self.start_figures()
         stats = T.stats_frame(self.data)
         with_stats = {"table4", "effort", "estimation"}
         for name in self.SECTIONS:
@@ -423,10 +459,12 @@ class Report:
         return self.out
 
 
-def build(path, out=None, margin=None, figures: bool = True, progress: bool = True) -> Path:
+def build(path, out=None, margin=None, figures: bool = True, progress: bool = True, all_figures: bool = False
+          ) -> Path:
     """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`);
     ``progress``: a bar over the sections and the figures, with an ETA (:mod:`ddmr_cli.progress`), drawn once the
-    report's dir is locked, so a refused report prints its one error line only."""
+    report's dir is locked, so a refused report prints its one error line only; ``all_figures``: every figure of
+    every scenario (:func:`ddmr_cli.report.figures.figure_tasks`)."""
     from ddmr_cli.progress import Ticker, bar
 
     margin = Margin.parse(margin)
@@ -434,7 +472,9 @@ def build(path, out=None, margin=None, figures: bool = True, progress: bool = Tr
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
 
     def write(root: Path) -> Path:
-        report = Report(data, root, margin, figures, final=out_dir)
+        report = Report(data, root, margin, figures, final=out_dir, all_figures=all_figures)
+        if figures:
+            report.start_figures()  # the figure processes forked before the bar's thread starts
         with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs") as b, Ticker(b):
             report.step = b.update
             return report.build()

@@ -68,24 +68,24 @@ class Job:
     def controller(self) -> str:
         return str(self.summary.get("controller"))
 
-    @property
+    @cached_property
     def trajectory(self) -> str:
         """The trajectory option the job's overrides chose (the default, line, when none did)."""
         chosen = [o.partition("=")[2] for o in self.overrides if _override_key(o) == "trajectory"]
         return chosen[-1] if chosen else PAPER_TRAJECTORY
 
-    @property
+    @cached_property
     def plant(self) -> str:
         """The plant the job ran on: its saved config's ``plant.name`` (the wheel plant when it has none)."""
         return str(self.setting("plant.name", PAPER_PLANT))
 
-    @property
+    @cached_property
     def scenario_on_paper_plant(self) -> str:
         """The scenario's name, ``@<trajectory>`` appended on a reference other than the paper's line."""
         name = str(self.summary.get("scenario"))
         return name if self.trajectory == PAPER_TRAJECTORY else f"{name}@{self.trajectory}"
 
-    @property
+    @cached_property
     def scenario(self) -> str:
         """:attr:`scenario_on_paper_plant`, ``@<plant>`` appended on a plant other than the wheel plant."""
         name = self.scenario_on_paper_plant
@@ -109,8 +109,13 @@ class Job:
     def series_seeds(self) -> list[int]:
         return [int(s) for s in self.summary.get("series_seeds", [])]
 
+    @cached_property
+    def flat_config(self) -> dict[str, Any]:
+        """The config flattened to dotted keys (:func:`flatten`), once: a large report asks for settings often."""
+        return flatten(self.config)
+
     def setting(self, dotted: str, default=None):
-        return flatten(self.config).get(dotted, default)
+        return self.flat_config.get(dotted, default)
 
 
 def controller_rank(controller: str) -> tuple[float, str]:

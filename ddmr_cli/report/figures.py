@@ -1,8 +1,11 @@
 """Figures mirroring the paper's (Figs. 3-14) plus the NN's share and the voltage spectra, one PNG each, per
 scenario, from the jobs' kept time series (and their across-seed bands when the jobs wrote ``bands.npz``).
 
-Each figure uses one seed: the first kept seed common to every job of the scenario, so every controller faces
-the same terrain. With bands, a time-series figure shows per controller the mean over all seeds (line), the
+Each figure uses one seed: the first kept seed common to every job drawn, so every controller faces the same
+terrain. A scenario with more than :data:`MAX_JOBS` jobs (a sweep over some setting: realism levels, gains) draws
+one job per controller in its time-series figures (:func:`shown_jobs`: the job without a swept setting, else the
+ideal loop, else the first) and the sweep itself in a summary figure, one line per controller over the swept
+setting (:meth:`ScenarioFigures.fig_sweep`); every figure stays within :data:`MAX_INCHES` on each side. With bands, a time-series figure shows per controller the mean over all seeds (line), the
 5-95 % band (shaded) and that seed (thin line). Long lines are thinned to at most
 :data:`~ddmr_cli.plots.common.MAX_POINTS` points keeping each bin's minimum and maximum; zooms are drawn at full
 resolution. Lines that would overlap are drawn widest-spread first, or split into one panel per controller.
@@ -38,6 +41,14 @@ POSE_T_MIN = 2.0
 PART_COLORS = {"ndo": OKABE_ITO["orange"], "nn": OKABE_ITO["sky_blue"]}
 
 
+#: At most this many jobs of one scenario are drawn in its time-series figures (:func:`shown_jobs`).
+MAX_JOBS = 10
+#: Panels per page of the small multiples of a sweep's jobs (:meth:`ScenarioFigures.fig_multiples`).
+MULTIPLES = 24
+#: No figure is larger than this on either side (inches; at DPI 110 about 2,900 px).
+MAX_INCHES = 26.0
+
+
 @dataclass
 class Figure:
     path: Path
@@ -47,13 +58,40 @@ class Figure:
 
 def _legend(ax, order: list[str] | None = None, **kw) -> None:
     """Legend outside the axes, on the right (the curves and the zone labels stay visible); entries in
-    ``order`` (labels) come first, in that order, whatever order the lines were drawn in."""
+    ``order`` (labels) come first, in that order, whatever order the lines were drawn in. Entries that would
+    not fit the figure's height in one column go into several (:func:`legend_columns`)."""
     handles, labels = ax.get_legend_handles_labels()
     if order:
         rank = {label: i for i, label in enumerate(order)}
         pairs = sorted(zip(handles, labels), key=lambda hl: rank.get(hl[1], len(rank)))
         handles, labels = [h for h, _ in pairs], [l for _, l in pairs]
+    kw.setdefault("ncol", legend_columns(len(labels), ax.figure.get_figheight()))
     ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, **kw)
+
+
+def legend_columns(entries: int, height_in: float, fontsize: float = 8.0) -> int:
+    """Columns a legend of ``entries`` needs to fit ``height_in`` inches (a row is about 1.9 font sizes)."""
+    rows = max(1, int(0.8 * height_in * 72 / (1.9 * fontsize)))
+    return max(1, math.ceil(entries / rows))
+
+
+def shown_jobs(jobs: list[Job], limit: int = MAX_JOBS) -> list[Job]:
+    """The jobs a scenario's time-series figures draw: all of them up to ``limit``, else one per controller
+    (:func:`ddmr_cli.report.realism.representative`, or the controller's first job), in the given order."""
+    if len(jobs) <= limit:
+        return list(jobs)
+    from ddmr_cli.report.realism import representative
+
+    out = []
+    for controller in dict.fromkeys(j.controller for j in jobs):
+        mine = [j for j in jobs if j.controller == controller]
+        out.append(representative(mine) or mine[0])
+    return out
+
+
+def _height(base: float, per_row: float, rows: int) -> float:
+    """A figure's height in inches for ``rows`` panels, at most :data:`MAX_INCHES` (the panels shrink)."""
+    return min(base + per_row * rows, MAX_INCHES)
 
 
 def _mm(x: float) -> str:
@@ -73,7 +111,8 @@ class ScenarioFigures:
 
     def __init__(self, data: ReportData, scenario: str, out_dir: Path, styles: StyleBook):
         self.data, self.scenario, self.out_dir, self.styles = data, scenario, Path(out_dir), styles
-        self.jobs = [data.job(scenario, k) for k in data.keys(scenario)]
+        self.all_jobs = [data.job(scenario, k) for k in data.keys(scenario)]
+        self.jobs = shown_jobs(self.all_jobs)
         self.seed = common_seed(self.jobs)
         self.series: dict[str, dict[str, np.ndarray]] = {}
         self.bands: dict[str, object] = {}
@@ -103,7 +142,9 @@ class ScenarioFigures:
         return self.series[job.key]
 
     def style(self, job: Job) -> dict:
-        return self.styles[job.controller].kwargs(job.variant)
+        """The job's line style: its controller's, with a variant's marker only when its variants are drawn
+        together (one job per controller drawn: no marker)."""
+        return self.styles[job.controller].kwargs(job.variant if len(self.jobs) == len(self.all_jobs) else 0)
 
     def paper_says(self, figure: str) -> str:
         text = (self.paper.get("figures", {}).get(figure) or {}).get(self.scenario)
@@ -194,10 +235,12 @@ class ScenarioFigures:
 
     def _decorate_time(self, ax, labels: bool = False):
         """Shade every other phase (or terrain zone) on a time axis and name them at the top."""
-        for i, (a, b, name) in enumerate(self._spans()):
+        spans = self._spans()
+        total = (spans[-1][1] - spans[0][0]) if spans else 0.0
+        for i, (a, b, name) in enumerate(spans):
             if i % 2:
                 ax.axvspan(a, b, color="0.92", zorder=0)
-            if labels:
+            if labels and b - a >= 0.05 * total:  # a span too narrow for its name (a short run) stays unnamed
                 ax.text((a + b) / 2, 0.98, name.replace("_", " "), transform=ax.get_xaxis_transform(),
                         ha="center", va="top", fontsize=8, color="0.35")
 
@@ -261,7 +304,7 @@ class ScenarioFigures:
         return [j.label for j in self.jobs]
 
     def _by_controller(self, controller: str) -> Job | None:
-        return next((j for j in self.jobs if j.controller == controller and j.variant == 0), None)
+        return next((j for j in self.jobs if j.controller == controller), None)
 
     # --- the figures -------------------------------------------------------------------------------------
     def fig_terrain(self, plt):
@@ -412,7 +455,7 @@ class ScenarioFigures:
                    f"(mrad): {_listing(sds)}.")
 
     def _panel_grid(self, plt, n_rows: int, ratios=(2.4, 1.0), row_height: float = 1.55):
-        fig, axes = plt.subplots(n_rows, 2, figsize=(12, 1.0 + row_height * n_rows), squeeze=False,
+        fig, axes = plt.subplots(n_rows, 2, figsize=(12, _height(1.0, row_height, n_rows)), squeeze=False,
                                  gridspec_kw={"width_ratios": list(ratios)}, sharex="col", sharey="col")
         return fig, axes
 
@@ -464,7 +507,7 @@ class ScenarioFigures:
         if not nnos:
             return
         t0, t1 = self._zoom_window()
-        fig, axes = plt.subplots(len(nnos), 3, figsize=(13, 1.2 + 2.0 * len(nnos)), squeeze=False, sharex="col",
+        fig, axes = plt.subplots(len(nnos), 3, figsize=(13, _height(1.2, 2.0, len(nnos))), squeeze=False, sharex="col",
                                  sharey="col", gridspec_kw={"width_ratios": [2.2, 1.0, 1.6]})
         shares = []
         for i, (row, job) in enumerate(zip(axes, nnos)):
@@ -554,7 +597,7 @@ class ScenarioFigures:
             return
         sigma = self.paper["figure9_smc_sigma"]
         show_paper = self.scenario == "paper_1" and any(j.controller == "smc" for j in jobs)
-        fig, axes = plt.subplots(len(jobs), 2, figsize=(12, 1.0 + 1.55 * len(jobs)), squeeze=False, sharex=True,
+        fig, axes = plt.subplots(len(jobs), 2, figsize=(12, _height(1.0, 1.55, len(jobs))), squeeze=False, sharex=True,
                                  sharey=True)
         for i, (row, job) in enumerate(zip(axes, jobs)):
             for ax, wheel in zip(row, ("right", "left")):
@@ -655,17 +698,112 @@ class ScenarioFigures:
                    f"hf_fraction metric. {self.paper_says('spectrum')} Ours — fraction of var(u) above {cutoff:g} Hz "
                    f"(hf_fraction, mean over seeds): {_listing(hf)}.")
 
+    def swept(self) -> dict[str, list[Job]]:
+        """Per controller with several jobs on this scenario (a sweep over some setting), its jobs; empty when
+        the realism section draws them (:mod:`ddmr_cli.report.realism`)."""
+        from ddmr_cli.report import realism
+
+        groups: dict[str, list[Job]] = {}
+        for job in self.all_jobs:
+            groups.setdefault(job.controller, []).append(job)
+        groups = {c: js for c, js in groups.items() if len(js) > 1}
+        if groups and realism.present(self.data):
+            return {}
+        return groups
+
+    def fig_sweep(self, plt):
+        """The sweep at a glance: per controller with several jobs, the deviation and chattering (steady state
+        when the jobs have it) against the setting its jobs differ in, mean and 5-95 % band over the seeds."""
+        groups = self.swept()
+        if not groups:
+            return
+        m = self.data.metrics
+        ok = m[m["status"] == "ok"]
+        metrics = [(c if f"{c}_ss" not in m.columns else f"{c}_ss", label) for c, label in
+                   (("deviation_mae", "deviation MAE [mm]"), ("chattering", "chattering [V/s]"))]
+        levels = sorted(dict.fromkeys(_setting(j) for js in groups.values() for j in js), key=_level_order)
+        keys = list(dict.fromkeys(o.partition("=")[0].lstrip("+~") for js in groups.values() for j in js
+                                  for o in j.extra))
+        width = min(max(7.0, 0.45 * len(levels) + 4.5), MAX_INCHES)
+        fig, axes = plt.subplots(len(metrics), 1, figsize=(width, 6.5), sharex=True, squeeze=False)
+        xs = {level: i for i, level in enumerate(levels)}
+        for ax, (metric, ylabel) in zip(axes[:, 0], metrics):
+            scale = 1000.0 if metric.startswith("deviation") else 1.0
+            for controller, jobs in groups.items():
+                pts = [(xs[_setting(job)], *b) for job in jobs if (b := _band(ok, job, metric, scale))]
+                if not pts:
+                    continue
+                x, mean, lo, hi = (np.array(c) for c in zip(*sorted(pts)))
+                style = self.styles[controller]
+                ax.plot(x, mean, color=style.color, ls=style.kwargs()["ls"], marker=style.marker or "o", ms=3.5,
+                        lw=1.2, label=jobs[0].display.label)
+                ax.fill_between(x, lo, hi, color=style.color, alpha=BAND_ALPHA, lw=0)
+            if np.all([v > 0 for line in ax.get_lines() for v in line.get_ydata()]) and ax.get_lines():
+                ax.set_yscale("log")
+            ax.set_ylabel(ylabel + (" (steady state)" if metric.endswith("_ss") else ""))
+            ax.grid(alpha=0.3, which="both")
+        bottom = axes[-1, 0]
+        bottom.set_xticks(range(len(levels)), [_short(level) for level in levels],
+                          rotation=30 if len(levels) > 5 else 0, ha="right" if len(levels) > 5 else "center",
+                          fontsize=7 if len(levels) > 12 else 8)
+        bottom.set_xlabel(", ".join(keys) or "swept setting")
+        axes[0, 0].set_title(f"The sweep at a glance — {self.scenario}: mean and 5–95 % band over seeds")
+        _legend(axes[0, 0])
+        drawn = ", ".join(j.label for j in self.jobs)
+        self._save(fig, "sweep", "The sweep at a glance: one line per controller over the swept setting",
+                   f"{len(self.all_jobs)} jobs on this scenario; per controller, its jobs' deviation (mm) and "
+                   f"chattering (mean over seeds, 5–95 % band) against the setting they differ in. The time-series "
+                   f"figures below draw {len(self.jobs)} of them ({drawn})"
+                   + ("." if len(self.jobs) == len(self.all_jobs) else
+                      "; every job's numbers are in tables/statistics.csv."))
+
+    def fig_multiples(self, plt):
+        """Every job of a scenario with more than the figures draw (a sweep), in small multiples: per controller,
+        pages of at most :data:`MULTIPLES` panels, each the deviation of the job's first kept seed against time
+        (log scale, shared), titled by its setting (``ddmr report --all-figures``)."""
+        if len(self.jobs) == len(self.all_jobs):
+            return
+        for controller in dict.fromkeys(j.controller for j in self.all_jobs):
+            jobs = sorted((j for j in self.all_jobs if j.controller == controller), key=_sweep_order)
+            for page in range(0, len(jobs), MULTIPLES):
+                chunk = jobs[page:page + MULTIPLES]
+                rows = math.ceil(len(chunk) / 4)
+                fig, axes = plt.subplots(rows, 4, figsize=(12, 0.8 + 1.7 * rows), sharex=True, sharey=True,
+                                         squeeze=False)
+                for ax, job in zip(axes.flat, chunk):
+                    seeds = job.series_seeds
+                    if not seeds or not (job.dir / io.SERIES).is_file():
+                        ax.text(0.5, 0.5, "no kept series", transform=ax.transAxes, ha="center", fontsize=7)
+                    else:  # two channels of one seed, not cached: a large sweep's series would not fit in memory
+                        s = io.read_series(job.dir / io.SERIES, ("t", "deviation"))[seeds[0]]
+                        idx = thin(s["deviation"], 1500)
+                        ax.plot(s["t"][idx], 1000 * s["deviation"][idx], **{**self.style(job), "marker": None})
+                        if (s["deviation"] > 0).any():
+                            ax.set_yscale("log")
+                    ax.set_title(_short(_setting(job), 34), fontsize=8)
+                    ax.grid(alpha=0.3, which="both")
+                for ax in list(axes.flat)[len(chunk):]:
+                    ax.axis("off")
+                for ax in axes[:, 0]:
+                    ax.set_ylabel("deviation [mm]", fontsize=8)
+                label = chunk[0].display.label
+                part = f" ({page // MULTIPLES + 1} of {math.ceil(len(jobs) / MULTIPLES)})" if len(jobs) > MULTIPLES else ""
+                fig.suptitle(f"{label}: every job of the sweep — {self.scenario}, its first kept seed{part}",
+                             fontsize=10)
+                self._save(fig, f"multiples_{safe_name(controller)}_{page // MULTIPLES + 1}",
+                           f"Every {label} job, one panel each{part}",
+                           f"Deviation from the reference (mm, log scale, shared axes) of each {label} job's first "
+                           f"kept seed, titled by the setting the job differs in.")
+
     def fig_spread(self, plt):
-        keys = self.data.keys(self.scenario)
         values, labels, colors = [], [], []
-        for key in keys:
-            job = self.data.job(self.scenario, key)
+        for job in self.jobs:
             frame = self.data.metrics[(self.data.metrics["job"] == job.dir.name)
                                       & (self.data.metrics["status"] == "ok")]
             values.append(frame["deviation_mae"].astype(float).dropna().to_numpy())
             labels.append(job.label)
             colors.append(self.style(job)["color"])
-        fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(keys) + 2), 4.2))
+        fig, ax = plt.subplots(figsize=(min(max(6, 1.6 * len(self.jobs) + 2), MAX_INCHES), 4.2))
         if any(v.size for v in values):
             box = ax.boxplot([v if v.size else [np.nan] for v in values], widths=0.5, showfliers=False,
                              patch_artist=True, medianprops={"color": "k"})
@@ -674,7 +812,8 @@ class ScenarioFigures:
             rng = np.random.default_rng(0)
             for i, (v, c) in enumerate(zip(values, colors), start=1):
                 ax.scatter(i + rng.uniform(-0.15, 0.15, v.size), v, s=10, color=c, alpha=0.8, zorder=3)
-        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=15 if len(labels) > 4 else 0)
+        crowded = len(labels) > 4 or sum(map(len, labels)) > 60  # long labels (a sweep's settings) overlap
+        ax.set_xticks(range(1, len(labels) + 1), labels, rotation=15 if crowded else 0, ha="right" if crowded else "center")
         ax.set_yscale("log")
         ax.set(ylabel="deviation MAE per seed [m] (log scale)",
                title=f"Spread of the deviation MAE over seeds — {self.scenario}")
@@ -692,6 +831,45 @@ class ScenarioFigures:
                                                  if any(j.controller in names for j in self.jobs) else "."))
 
 
+def _band(ok, job: Job, metric: str, scale: float = 1.0) -> tuple[float, float, float] | None:
+    """Mean, 5th and 95th percentile over the job's seeds of ``metric`` (times ``scale``) in the metrics rows
+    ``ok``; None when it has no finite value."""
+    v = scale * ok.loc[ok["job"] == job.dir.name, metric].astype(float).to_numpy()
+    v = v[np.isfinite(v)]
+    return (float(v.mean()), float(np.percentile(v, 5)), float(np.percentile(v, 95))) if v.size else None
+
+
+def _setting(job: Job) -> str:
+    """What sets a job apart from its controller's other jobs: its distinguishing overrides' values."""
+    return ", ".join(o.partition("=")[2] or o for o in job.extra) or "(default)"
+
+
+def _sweep_order(job: Job) -> tuple:
+    """Sort key of a sweep's jobs: on a realism axis (ideal first, then each effect from mild to harsh), else by
+    :func:`_level_order` of the setting."""
+    from ddmr_cli.report.realism import EFFECTS, classify
+
+    place = classify(job)
+    effects = ["ideal", *EFFECTS, "combined"]
+    if place.effect in effects and (place.effect != "ideal" or not job.extra or "ideal" in _setting(job)):
+        worse_up = EFFECTS.get(place.effect, ("", "", True))[2]
+        level = place.level if math.isfinite(place.level) else 0.0
+        return (0, effects.index(place.effect), level if worse_up else -level, _setting(job))
+    return (1, 0, 0.0, "", *_level_order(_setting(job)))
+
+
+def _level_order(level: str) -> tuple:
+    """Sort key of a swept setting's text: numerically when it is one number, else as text, numbers first."""
+    try:
+        return (0, float(level), "")
+    except ValueError:
+        return (1, 0.0, level)
+
+
+def _short(text: str, width: int = 28) -> str:
+    return text if len(text) <= width else text[:width - 1] + "…"
+
+
 def common_seed(jobs: list[Job]) -> int | None:
     """The first kept seed common to every job (None when there is none)."""
     if not jobs or not all((j.dir / io.SERIES).is_file() for j in jobs):
@@ -703,16 +881,127 @@ def common_seed(jobs: list[Job]) -> int | None:
     return ordered[0] if ordered else None
 
 
-FIGURE_METHODS = ("fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
-                  "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread")
+FIGURE_METHODS = ("fig_sweep", "fig_terrain", "fig_trajectory", "fig_deviation", "fig_pose_errors", "fig_disturbance",
+                  "fig_nn_share", "fig_voltage", "fig_spectrum", "fig_sliding", "fig_environment", "fig_spread",
+                  "fig_multiples")
+#: Figures drawn only when every figure is asked for (``ddmr report --all-figures``): a sweep's jobs one by one.
+ON_DEMAND = ("fig_multiples",)
+
+
+def fig_table4(t4, out_dir: Path, styles: StyleBook, displays: dict) -> Figure | None:
+    """Our Table 4 beside the paper's: per column (deviation mean with its SD over seeds, e_x, e_y, e_θ MAE) and
+    per row compared with the paper (scenario 1), our bar in the controller's colour and the paper's hatched grey,
+    linear from 0, millimetres (mrad); ``t4`` is :func:`ddmr_cli.report.tables.table4_frame`. None without such rows."""
+    from ddmr_cli.paper import TABLE4_COLUMNS
+
+    rows = t4[t4["paper_row"].astype(str) != ""]
+    if rows.empty:
+        return None
+    plt = pyplot()
+    columns = [c for c in TABLE4_COLUMNS if c[1] == "mean"]
+    fig, axes = plt.subplots(1, len(columns), figsize=(min(3.2 * len(columns) + 1.0, MAX_INCHES), 3.8))
+    x = np.arange(len(rows))
+    for ax, (metric, _, col, header) in zip(axes, columns):
+        ours, theirs = 1000 * rows[col].astype(float).to_numpy(), 1000 * rows[f"paper_{col}"].astype(float).to_numpy()
+        err = 1000 * rows["deviation_sd"].astype(float).to_numpy() if col == "deviation_mean" else None
+        perr = 1000 * rows["paper_deviation_sd"].astype(float).to_numpy() if col == "deviation_mean" else None
+        colors = [styles[c].color for c in rows["controller"]]
+        ax.bar(x - 0.2, ours, 0.4, yerr=err, color=colors, edgecolor="k", lw=0.5, capsize=2, label="ours")
+        ax.bar(x + 0.2, theirs, 0.4, yerr=perr, color="0.85", edgecolor="0.4", hatch="///", lw=0.5, capsize=2,
+               label="paper")
+        ax.set_ylim(bottom=0)  # linear from 0: a bar's length is its value
+        unit = "mrad" if "theta" in metric else "mm"
+        ax.set_title(header.split(" (")[0] + f" [{unit}]", fontsize=9)
+        ax.set_xticks(x, [_short(displays[c].label, 14) for c in rows["controller"]], rotation=30, ha="right",
+                      fontsize=8)
+        ax.grid(alpha=0.3, axis="y", which="both")
+    axes[0].legend(loc="upper right", fontsize=7)
+    fig.suptitle("Table 4, scenario 1: ours (colour, SD over seeds as error bar) beside the paper's (hatched)",
+                 fontsize=10)
+    path = save(fig, Path(out_dir) / "table4_vs_paper.png")
+    return Figure(path, "Our Table 4 beside the paper's", "Scenario 1 (the paper's Table 4 does not say which "
+                  "scenario it reports), whole-run MAE; our bar in each controller's colour, the "
+                  "paper's hatched grey; on the deviation, the SD over seeds as an error bar. The paper prints e_θ "
+                  "in m; it is rad (here mrad).")
+
+
+#: The figures every scenario gets. A scenario on the paper's reference (its line: the figures the paper draws)
+#: gets every one of :data:`FIGURE_METHODS`; one on another reference (``paper_1@circle``) only these, unless
+#: every figure is asked for (``ddmr report --all-figures``): a large sweep's report draws what is read first.
+SUMMARY_METHODS = ("fig_sweep", "fig_trajectory", "fig_deviation", "fig_spread")
+#: The task of the figure across all scenarios (:func:`fig_scenarios`); its figures are listed under this key.
+ACROSS = ""
+
+
+def detailed(data: ReportData, scenario: str) -> bool:
+    """Whether ``scenario`` gets every figure by default: its jobs track the paper's reference."""
+    from ddmr_cli.report.data import PAPER_TRAJECTORY
+
+    return any(j.trajectory == PAPER_TRAJECTORY for j in data.jobs if j.scenario == scenario)
+
+
+def figure_tasks(data: ReportData, every: bool = False) -> list[tuple[str, str]]:
+    """The figure tasks ``(scenario, method)`` of a report, the summaries first: the figure across scenarios when
+    there are more than two, then per scenario its figures (every one with ``every``, else as
+    :data:`SUMMARY_METHODS` says)."""
+    tasks = [(ACROSS, "fig_scenarios")] if len(data.scenarios) > 2 else []
+    for scenario in data.scenarios:
+        methods = FIGURE_METHODS if every or detailed(data, scenario) else SUMMARY_METHODS
+        tasks += [(scenario, m) for m in FIGURE_METHODS if m in methods and (every or m not in ON_DEMAND)]
+    return tasks
+
+
+def fig_scenarios(data: ReportData, out_dir: Path, styles: StyleBook, plt) -> list[Figure]:
+    """Every scenario at a glance: per controller (one job per scenario, :func:`shown_jobs`) its deviation and
+    chattering (steady state when the jobs have it), mean and 5-95 % band over the seeds, one line per
+    controller over the scenarios."""
+    m = data.metrics
+    ok = m[m["status"] == "ok"]
+    metrics = [(c if f"{c}_ss" not in m.columns else f"{c}_ss", label) for c, label in
+               (("deviation_mae", "deviation MAE [mm]"), ("chattering", "chattering [V/s]"))]
+    scenarios = data.scenarios
+    shown = {s: shown_jobs([data.job(s, k) for k in data.keys(s)]) for s in scenarios}
+    controllers = list(dict.fromkeys(j.controller for s in scenarios for j in shown[s]))
+    width = min(max(8.0, 0.9 * len(scenarios) + 4.5), MAX_INCHES)
+    fig, axes = plt.subplots(len(metrics), 1, figsize=(width, 6.5), sharex=True, squeeze=False)
+    for ax, (metric, ylabel) in zip(axes[:, 0], metrics):
+        scale = 1000.0 if metric.startswith("deviation") else 1.0
+        for controller in controllers:
+            pts = []
+            for i, scenario in enumerate(scenarios):
+                job = next((j for j in shown[scenario] if j.controller == controller), None)
+                if job is not None and (b := _band(ok, job, metric, scale)):
+                    pts.append((i, *b))
+            if not pts:
+                continue
+            x, mean, lo, hi = (np.array(c) for c in zip(*pts))
+            style = styles[controller]
+            ax.plot(x, mean, color=style.color, ls=style.kwargs()["ls"], marker=style.marker or "o", ms=3.5, lw=1.2,
+                    label=data.displays()[controller].label)
+            ax.fill_between(x, lo, hi, color=style.color, alpha=BAND_ALPHA, lw=0)
+        if ax.get_lines() and all((line.get_ydata() > 0).all() for line in ax.get_lines()):
+            ax.set_yscale("log")
+        ax.set_ylabel(ylabel + (" (steady state)" if metric.endswith("_ss") else ""))
+        ax.grid(alpha=0.3, which="both")
+    axes[-1, 0].set_xticks(range(len(scenarios)), [_short(s) for s in scenarios], rotation=20, ha="right")
+    axes[-1, 0].set_xlabel("scenario (@ the reference when not the paper's line)")
+    axes[0, 0].set_title("Every scenario at a glance: mean and 5–95 % band over seeds")
+    _legend(axes[0, 0])
+    path = save(fig, Path(out_dir) / "scenarios.png")
+    return [Figure(path, "Every scenario at a glance: one line per controller over the scenarios",
+                   f"{len(scenarios)} scenarios; per controller its deviation (mm) and chattering, mean over seeds "
+                   f"and 5–95 % band (one job per controller and scenario; every number in Table 4 and "
+                   f"tables/statistics.csv).")]
 
 
 def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str, str]):
     """One figure task ``(scenario, method)``: its figures and notes."""
     scenario, method = task
+    if scenario == ACROSS:
+        return fig_scenarios(data, out_dir, styles, pyplot()), []
     sf = ScenarioFigures(data, scenario, out_dir, styles)
-    if sf.seed is None and method != "fig_spread":
-        if method == FIGURE_METHODS[0]:
+    if sf.seed is None and method not in ("fig_spread", "fig_sweep", "fig_multiples"):
+        if method == "fig_terrain":
             sf.notes.append(f"{scenario}: no kept time-series seed common to every job (run.keep_series); "
                             f"time-series figures skipped")
         return [], sf.notes
@@ -744,9 +1033,9 @@ def workers(n_tasks: int) -> int:
     return max(1, min(n, n_tasks))
 
 
-def _run_forked(data, out_dir, styles, tasks, n: int, done=lambda: None) -> list:
+def _start_forked(data, out_dir, styles, tasks, n: int):
+    """``n`` forked figure processes, given every task; :func:`_collect` gathers their results."""
     import multiprocessing
-    import queue
 
     ctx = multiprocessing.get_context("fork")
     task_q, result_q = ctx.Queue(), ctx.Queue()
@@ -758,6 +1047,18 @@ def _run_forked(data, out_dir, styles, tasks, n: int, done=lambda: None) -> list
         task_q.put(item)
     for _ in procs:
         task_q.put(None)
+    return procs, result_q, tasks
+
+
+def _run_forked(data, out_dir, styles, tasks, n: int, done=lambda: None) -> list:
+    return _collect(*_start_forked(data, out_dir, styles, tasks, n), done=done)
+
+
+def _collect(procs, result_q, tasks, done=lambda: None) -> list:
+    """The results of the figure processes, in task order (a task's failure raised here; ``done()`` called as
+    each arrives); the processes ended."""
+    import queue
+
     results: list = [None] * len(tasks)
     pending = len(tasks)
     try:
@@ -795,24 +1096,43 @@ def _warm_up() -> None:
     plt.close(fig)
 
 
-def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, done=lambda: None
-                 ) -> tuple[dict[str, list[Figure]], list[str]]:
-    """All figures, per scenario (in forked processes when the machine has several cores); returns them and
-    notes on what was skipped. ``done()`` is called as each figure task ends (the report's progress bar)."""
+def make_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False,
+                 done=lambda: None) -> tuple[dict[str, list[Figure]], list[str]]:
+    """The report's figures (:func:`figure_tasks`; every one with ``every``), per scenario (the figure across
+    scenarios under :data:`ACROSS`, first), drawn in forked processes when the machine has several cores;
+    returns them and notes on what was skipped. ``done()`` is called as each figure task ends (the report's
+    progress bar)."""
+    return start_figures(data, out_dir, styles, every, done)()
+
+
+def start_figures(data: ReportData, out_dir: Path, styles: StyleBook | None = None, every: bool = False,
+                  done=lambda: None):
+    """Start drawing :func:`make_figures`' figures in forked processes (the caller goes on with its tables
+    meanwhile); returns the function that waits for them and returns what :func:`make_figures` returns. With one
+    process the figures are drawn when that function is called. ``done()`` is called as each figure task's
+    result is gathered."""
     styles = styles or StyleBook((j.controller for j in data.jobs), data.displays())
-    tasks = [(scenario, method) for scenario in data.scenarios for method in FIGURE_METHODS]
+    tasks = figure_tasks(data, every)
     for scenario in data.scenarios:  # read the series (and bands) once, before any fork
         ScenarioFigures(data, scenario, out_dir, styles)
     n = workers(len(tasks))
     if n > 1:
         _warm_up()
-        results = _run_forked(data, Path(out_dir), styles, tasks, n, done)
-    else:
+        started = _start_forked(data, Path(out_dir), styles, tasks, n)
+        return lambda: _gather(data, tasks, _collect(*started, done=done))
+
+    def draw_here():
         results = []
         for task in tasks:
             results.append(make_one(data, Path(out_dir), styles, task))
             done()
-    figures: dict[str, list[Figure]] = {s: [] for s in data.scenarios}
+        return _gather(data, tasks, results)
+
+    return draw_here
+
+
+def _gather(data: ReportData, tasks, results) -> tuple[dict[str, list[Figure]], list[str]]:
+    figures: dict[str, list[Figure]] = {s: [] for s in dict.fromkeys(s for s, _ in tasks)}
     notes: list[str] = []
     for (scenario, _), (figs, task_notes) in zip(tasks, results):
         figures[scenario] += figs

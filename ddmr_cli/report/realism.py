@@ -83,6 +83,17 @@ def present(data: ReportData) -> bool:
     return "ideal" in kinds and len(kinds) > 1
 
 
+def representative(jobs: list[Job]) -> Job | None:
+    """Of one controller's jobs on one scenario, the one that stands for it where one job is drawn or compared:
+    the job without a swept setting (its key is the controller), else the only one at the ideal loop
+    (:func:`classify`); None when there is no such job."""
+    plain = [j for j in jobs if j.key == j.controller]
+    if len(plain) == 1:
+        return plain[0]
+    ideal = [j for j in jobs if classify(j).effect == "ideal"]
+    return ideal[0] if len(ideal) == 1 else None
+
+
 def _per_seed(data: ReportData, job: Job, metric: str):
     frame = data.metrics[data.metrics["job"] == job.dir.name]
     return frame.set_index("seed")[metric].astype(float)
@@ -203,7 +214,9 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
         return None
     shares = nn_shares(data, scenario)
     ncols = len(effects) + (1 if shares else 0)
-    fig, axes = plt.subplots(len(METRICS), ncols, figsize=(3.6 * ncols, 3.0 * len(METRICS)), squeeze=False)
+    # constrained layout: the legend outside on the right ("outside" placement), all inside the figure
+    fig, axes = plt.subplots(len(METRICS), ncols, figsize=(3.6 * ncols + 1.6, 3.0 * len(METRICS) + 0.4),
+                             squeeze=False, layout="constrained")
     controllers = sorted({j.controller for j, _ in jobs}, key=_rank)
     for c_i, effect in enumerate(effects):
         for r_i, (metric, ylabel) in enumerate(METRICS):
@@ -222,7 +235,7 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
                         label=label_of(controller))
                 ax.fill_between(xs, lo, hi, color=style.color, alpha=0.15, lw=0)
                 ax.set_xticks(xs, [_level_text(effect, p) for _, p in axis], fontsize=7)
-            ax.set_yscale("log")
+            _y_scale(ax)
             ax.grid(alpha=0.3, which="both", lw=0.4)
             if r_i == 0:
                 ax.set_title(f"{EFFECTS[effect][0]}", fontsize=9)
@@ -243,9 +256,10 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
         ax.set_ylabel("mean |d̂_NN| / mean |d̂| (%)", fontsize=8)
         ax.grid(alpha=0.3, lw=0.4)
         axes[1, -1].axis("off")
-    axes[0, 0].legend(fontsize=7)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside right upper", fontsize=7)
     fig.suptitle(f"{scenario}: steady state against each effect (mean, 5-95 % band over seeds)", fontsize=10)
-    fig.tight_layout()
     out_dir.mkdir(parents=True, exist_ok=True)
     from ddmr_cli.storage.jobdir import safe_name
 
@@ -253,6 +267,23 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _y_scale(ax) -> None:
+    """Log scale when the axes hold positive values, else linear with a note: with an empty steady-state window
+    (metrics.settle_time >= simulation.duration) every steady-state metric is NaN and there is nothing to draw."""
+    values = np.concatenate([np.asarray(line.get_ydata(), float) for line in ax.get_lines()] or [np.array([])])
+    if (values[np.isfinite(values)] > 0).any():
+        ax.set_yscale("log")
+    elif not np.isfinite(values).any():
+        ax.text(0.5, 0.5, "no steady-state data\n(metrics.settle_time ≥ duration?)", transform=ax.transAxes,
+                ha="center", va="center", fontsize=7, color="0.4")
+
+
+def empty_steady_state(data: ReportData) -> bool:
+    """Whether no job has a finite steady-state deviation (the window after metrics.settle_time is empty)."""
+    column = METRICS[0][0]
+    return column not in data.metrics or not np.isfinite(data.metrics[column].astype(float)).any()
 
 
 def cost_rows(controllers: list[str]) -> list[dict]:
@@ -278,6 +309,10 @@ def section(report) -> None:
     report.add("## Realism: sensing, delay and control rate (docs/model.md §10)", "",
                f"Each job placed on one effect axis by its config ({link}). Steady-state metrics (after "
                f"metrics.settle_time), on the true pose and voltage; the controller saw only the measured signals.", "")
+    if empty_steady_state(d):
+        report.add("**No steady-state numbers**: every job's steady-state window is empty (metrics.settle_time is "
+                   "not below simulation.duration), so the tables below show – and the figures are empty. Run "
+                   "longer or lower metrics.settle_time.", "")
     for scenario in d.scenarios:
         report.add(f"### {scenario}", "")
         table = realism_table(d, scenario)
@@ -306,7 +341,7 @@ def section(report) -> None:
                        f"({shares[0]['series_seeds']} seed(s)), as the wheel-speed noise grows: "
                        + ", ".join(f"{r['speed_std']:g} rad/s → {T.pct(r['share_of_estimate'])}" for r in shares)
                        + ".", "")
-        path = figure(d, scenario, report.figures_dir, report.styles)
+        path = figure(d, scenario, report.figures_dir, report.styles) if report.draw_figures else None
         if path is not None:
             rel = path.relative_to(report.out).as_posix()
             report.add(f"![realism {scenario}]({rel})", "")
@@ -323,5 +358,5 @@ def section(report) -> None:
                                 f"{r['m4f_us']:.2f}", T.pct(r["budget_1khz"], 2)] for r in rows]), "")
 
 
-__all__ = ["classify", "present", "frame", "loses_to_pid", "realism_table", "nn_shares", "figure", "section",
+__all__ = ["classify", "representative", "present", "frame", "loses_to_pid", "realism_table", "nn_shares", "figure", "section",
            "EFFECTS", "Placement"]

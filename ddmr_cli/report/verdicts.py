@@ -119,11 +119,20 @@ def deviation_metric(data: ReportData) -> str:
 
 
 def _key_for(data: ReportData, scenario: str, controller: str) -> tuple[str | None, str]:
+    """The key of the job that stands for ``controller`` in ``scenario``: its only job, or in a sweep with several
+    its job without a swept setting or at the ideal loop (:func:`ddmr_cli.report.realism.representative`); else
+    None and why."""
+    from ddmr_cli.report.realism import representative
+
     keys = [k for k in data.keys(scenario) if data.controller_of(k) == controller]
     if not keys:
         return None, f"no complete {controller} job in {scenario}"
     if keys != [controller]:
-        return None, f"several {controller} jobs in {scenario} ({', '.join(keys)}); verdicts need one per controller"
+        stand_in = representative([data.job(scenario, k) for k in keys])
+        if stand_in is not None:
+            return stand_in.key, ""
+        return None, (f"several {controller} jobs in {scenario} ({', '.join(keys)}) and none at the ideal loop; "
+                      f"verdicts need one per controller")
     return controller, ""
 
 
@@ -358,6 +367,11 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
                 "the jobs have no steady-state column (`deviation_mae_ss`).", ""]
     out += [paper_self_contradiction(), ""]
     out += ["Verdicts:", ""] + [f"- **{k}**: {v}." for k, v in VERDICT_RULES.items()] + [""]
+    stand_ins = sorted({k for c in results for chk in c.checks for k in (chk.a, chk.b)
+                        if k != data.controller_of(k)})
+    if stand_ins:
+        out += ["Where a controller has several jobs on a scenario (a sweep), its verdicts use the job without a "
+                "swept setting or at the ideal loop: " + ", ".join(f"`{k}`" for k in stand_ins) + ".", ""]
     summary = [summary_line(data, c, scenario, reading) for c in results for (scenario, reading) in c.overall]
     not_checked = [c for c in results if not c.checks]
     out += ["### Summary", ""] + (summary or ["- no claim could be checked with these jobs"]) + [""]
@@ -390,8 +404,8 @@ def markdown(data: ReportData, results: list[ClaimResult], margin: Margin | None
         for (scenario, reading) in c.overall:
             out.append(summary_line(data, c, scenario, reading, title=False))
             if c.claim.kind == RANKING_KIND:
-                keys = [k for k in data.keys(scenario)
-                        if data.controller_of(k) in RANKING + (reading,) and k == data.controller_of(k)]
+                keys = [k for c_ in RANKING + (reading,) if (k := _key_for(data, scenario, c_)[0]) is not None]
+                keys = [k for k in data.keys(scenario) if k in keys]
                 for metric in c.metrics:
                     out.append(f"  Our order by mean {metric}, largest first: "
                                f"{our_order(data, scenario, keys, metric)}.")
@@ -460,7 +474,8 @@ def summary_line(data: ReportData, c: ClaimResult, scenario: str, reading: str, 
     parts = [f"on the {metric_name(m)}: {_bold(c.by_metric[(scenario, reading, m)])}{_numbers(c, scenario, reading, m)}"
              for m in c.metrics if (scenario, reading, m) in c.by_metric]
     head = f"{c.title} — " if title else ""
-    return f"- {head}{scenario}, {data.label(reading)}: " + "; ".join(parts)
+    label = next(j.display.label for j in data.jobs if j.controller == reading)  # the controller's, not a job's
+    return f"- {head}{scenario}, {label}: " + "; ".join(parts)
 
 
 def rows(results: list[ClaimResult]) -> list[dict]:

@@ -143,13 +143,14 @@ def write_summary(job_dir: Path, summary: dict) -> dict:
     return json.loads(json.dumps(summary, default=_json_default, allow_nan=True))
 
 
-def read_series(path: Path) -> dict[int, dict[str, np.ndarray]]:
-    """Inverse of :func:`write_series`."""
+def read_series(path: Path, channels=None) -> dict[int, dict[str, np.ndarray]]:
+    """Inverse of :func:`write_series`; only the named ``channels`` when given (the others are not read)."""
     out: dict[int, dict[str, np.ndarray]] = {}
     with np.load(path) as data:
         for key in data.files:
             seed, name = key.split("/", 1)
-            out.setdefault(int(seed[4:]), {})[name] = data[key]
+            if channels is None or name in channels:
+                out.setdefault(int(seed[4:]), {})[name] = data[key]
     return out
 
 
