@@ -397,3 +397,22 @@ def test_small_local_sweeps_run_in_this_process(overrides, n_jobs, work, expecte
     base = compose_config(overrides, return_hydra_config=True)
     parsed = OverridesParser.create().parse_overrides(overrides)
     assert small_local_sweep(base, parsed, n_jobs, work) is expected
+
+
+def test_the_plant_schema_names_every_field_the_physics_plant_reads():
+    """conf/plant/mujoco.yaml's schema (ddmr run --help, ddmr explain) and the plant's own config
+    (plant/mujoco_model.PhysicsConfig, which validates) have the same keys, section by section."""
+    from dataclasses import fields
+
+    from ddmr_cli.config import schema
+    from ddmr_cli.plant import mujoco_model as model
+
+    def names(cls):
+        return {f.name for f in fields(cls)}
+
+    assert names(schema.MujocoPlantConfig) - {"name"} == names(model.PhysicsConfig)
+    for ours, theirs in [(schema.HeightfieldSchema, model.HeightfieldConfig), (schema.PlantWheelSchema, model.WheelConfig),
+                         (schema.CasterSchema, model.CasterConfig), (schema.ChassisSchema, model.ChassisConfig),
+                         (schema.ContactSchema, model.ContactConfig),
+                         (schema.PlantDivergenceSchema, model.DivergenceConfig)]:
+        assert names(ours) == names(theirs), ours.__name__

@@ -7,10 +7,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from importlib import resources
 
 import numpy as np
-import yaml
 
 __all__ = ["PlantSpeed", "plant_config", "plant_throughput"]
 
@@ -39,9 +37,13 @@ class PlantSpeed:
 
 
 def plant_config(**overrides) -> dict:
-    """The packaged ``conf/plant/mujoco.yaml`` as a dict, top-level keys replaced by ``overrides``."""
-    text = resources.files("ddmr_cli.conf").joinpath("plant", "mujoco.yaml").read_text(encoding="utf-8")
-    return {**yaml.safe_load(text), **overrides}
+    """The packaged ``plant=mujoco`` config as composed (``conf/plant/mujoco.yaml`` on its schema), top-level keys
+    replaced by ``overrides``."""
+    from omegaconf import OmegaConf
+
+    from ddmr_cli.config.presets import paper_config
+
+    return {**OmegaConf.to_container(paper_config("plant=mujoco").plant, resolve=True), **overrides}
 
 
 def plant_throughput(runs: int, seconds: float, threads: int = 0) -> PlantSpeed:

@@ -115,7 +115,7 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
             warned.append(warning)
         est = job_estimate(cfg, sim)
         largest = est if largest is None or est.total > largest.total else largest
-        work += int(cfg.run.n_runs) * sim.n_steps
+        work += int(cfg.run.n_runs) * sim.n_steps * (EXTERNAL_PLANT_COST if sim.plant is not None else 1)
     if multirun and largest is not None:
         at_once = budget.at_once(str(base.hydra.launcher.get("_target_", "")), base.hydra.launcher.get("n_jobs"),
                                  len(jobs))
@@ -129,6 +129,9 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
 #: 6e6 run-steps), A/B over 5 pairs: 0.67x the CPU and 0.66x the wall time of the joblib launcher (issue 28).
 SMALL_SWEEP_JOBS = 16
 SMALL_SWEEP_RUN_STEPS = 20_000_000
+#: a run-step on an external plant counts as this many on the wheel plant: a MuJoCo step of the paper's robot took
+#: about 40 us against the compiled wheel loop's 0.2 us (issue 30), so a physics sweep runs in parallel processes
+EXTERNAL_PLANT_COST = 200
 
 
 def small_local_sweep(base: DictConfig, parsed, n_jobs: int, work: int) -> bool:
@@ -299,4 +302,4 @@ def _refuse_escapes(plan: list[dict], subdir: list[str]) -> None:
                              f"hydra.sweep.subdir a relative path below it")
 
 
-__all__ = ["SMALL_SWEEP_JOBS", "SMALL_SWEEP_RUN_STEPS", "small_local_sweep", "Mode", "Plan", "SingleRun", "Sweep", "TuningStudy", "CalibrationSearch", "mode_of"]
+__all__ = ["SMALL_SWEEP_JOBS", "SMALL_SWEEP_RUN_STEPS", "EXTERNAL_PLANT_COST", "small_local_sweep", "Mode", "Plan", "SingleRun", "Sweep", "TuningStudy", "CalibrationSearch", "mode_of"]

@@ -437,6 +437,109 @@ CLUSTER_KEYS = MappingProxyType({
 
 
 @dataclass
+class WheelPlantConfig:
+    """The paper's plant (docs/model.md §1, §5), inlined in the step loop: nothing to set but its name."""
+
+    name: str = param("wheel", unit="", help="the plant: wheel (the paper's 2x2 wheel model)", model=13)
+
+
+PLANT_MODEL = 13  # docs/model.md §13, the physics plant
+
+
+@dataclass
+class HeightfieldSchema:
+    resolution: float = param(unit="m", help="grid spacing of the heightfield", model=PLANT_MODEL,
+                              range="> 0; <= robot.wheel_radius / 2 and <= correlation_length / 2")
+    x_min: float = param(unit="m", help="the field's start along x (behind the start pose)", model=PLANT_MODEL)
+    x_max: float = param(unit="m", help="the field's end along x (past the path)", range="> x_min",
+                         model=PLANT_MODEL)
+    half_width: float = param(unit="m", help="the field spans y in [-half_width, half_width]", range="> 0",
+                              model=PLANT_MODEL)
+    origin: float = param(unit="m", help="x where the reference line starts: zone starts are distances from it",
+                          range="inside (x_min, x_max)", model=PLANT_MODEL)
+    correlation_length: float = param(unit="m", help="l of the heights' Gaussian correlation exp(-r^2/l^2) [13d]",
+                                      range="> 0", model=PLANT_MODEL)
+    truncation: float = param(unit="1", help="heights clipped at +-truncation x the zone's height SD [13e]",
+                              range="> 0", model=PLANT_MODEL)
+    ramp: float = param(unit="m", help="a zone's height SD ramps from the previous zone's over its first metres",
+                        range=">= 0", model=PLANT_MODEL)
+
+
+@dataclass
+class PlantWheelSchema:
+    shape: str = param(unit="", help="collision shape of the driven wheels", range="sphere | cylinder",
+                       model=PLANT_MODEL)
+    mass: float = param(unit="kg", help="each driven wheel's mass, part of robot.mass", range="> 0",
+                        model=PLANT_MODEL)
+    width: float = param(unit="m", help="tyre width (cylinder shape)", range="> 0", model=PLANT_MODEL)
+    friction: float = param(unit="1", help="sliding friction coefficient tyre-ground", range="> 0",
+                            model=PLANT_MODEL)
+    torsional_friction: float = param(unit="m", help="MuJoCo's torsional friction (spin about the contact normal)",
+                                      range=">= 0", model=PLANT_MODEL)
+
+
+@dataclass
+class CasterSchema:
+    radius: float = param(unit="m", help="ball casters' radius (frictionless)", range="> 0", model=PLANT_MODEL)
+    offset: float = param(unit="m", help="one caster ahead of and one behind the axle", range="> 0",
+                          model=PLANT_MODEL)
+    mass: float = param(unit="kg", help="each caster's mass, part of robot.mass", range="> 0", model=PLANT_MODEL)
+    stiffness: float = param(unit="N/m", help="each caster's vertical spring", range="> 0; timestep < "
+                             "2 sqrt(mass / stiffness)", model=PLANT_MODEL)
+    damping: float = param(unit="N s/m", help="each caster spring's damper", range=">= 0", model=PLANT_MODEL)
+
+
+@dataclass
+class ChassisSchema:
+    length: float = param(unit="m", help="collision box length (mass and inertia come from conf/robot)",
+                          range="> 0", model=PLANT_MODEL)
+    width: float = param(unit="m", help="collision box width", range="> 0", model=PLANT_MODEL)
+    height: float = param(unit="m", help="collision box height", range="> 0", model=PLANT_MODEL)
+    clearance: float = param(unit="m", help="box bottom above the ground at rest", range="> 0", model=PLANT_MODEL)
+
+
+@dataclass
+class ContactSchema:
+    timeconst: float = param(unit="s", help="MuJoCo solref time constant of every contact",
+                             range=">= 2 x timestep", model=PLANT_MODEL)
+    dampratio: float = param(unit="1", help="MuJoCo solref damping ratio (1 = critically damped)", range="> 0",
+                             model=PLANT_MODEL)
+
+
+@dataclass
+class PlantDivergenceSchema:
+    tip_angle: float = param(unit="rad", help="chassis tilt from upright beyond which the robot has tipped over",
+                             range="(0, pi)", model=PLANT_MODEL)
+    airborne_time: float = param(unit="s", help="neither wheel touching the ground this long: a diverged run",
+                                 range="> 0", model=PLANT_MODEL)
+
+
+@dataclass
+class MujocoPlantConfig:
+    """The rigid-body plant (docs/model.md §13). Fields as :class:`ddmr_cli.plant.mujoco_model.PhysicsConfig`."""
+
+    name: str = param("mujoco", unit="", help="the plant: mujoco (the robot as a rigid body on a heightfield; the "
+                      "physics extra)", model=PLANT_MODEL)
+    timestep: float = param(unit="s", help="MuJoCo's step", range="> 0; simulation.dt a whole multiple of it",
+                            model=PLANT_MODEL)
+    threads: int = param(unit="1", help="worker threads stepping a batch's runs; 0 = run.threads (1 per job in a "
+                         "sweep, else every core)", range=">= 0", model=PLANT_MODEL)
+    settle_time: float = param(unit="s", help="the robot settles onto its ground (held still) before the run",
+                               range=">= 0", model=PLANT_MODEL)
+    heightfield: HeightfieldSchema = param(unit="", help="the ground's extent and roughness mapping",
+                                           model=PLANT_MODEL, factory=HeightfieldSchema)
+    wheel: PlantWheelSchema = param(unit="", help="the driven wheels' collision geometry", model=PLANT_MODEL,
+                                    factory=PlantWheelSchema)
+    caster: CasterSchema = param(unit="", help="the two ball casters", model=PLANT_MODEL, factory=CasterSchema)
+    chassis: ChassisSchema = param(unit="", help="the chassis's collision box", model=PLANT_MODEL,
+                                   factory=ChassisSchema)
+    contact: ContactSchema = param(unit="", help="MuJoCo's soft-contact parameters", model=PLANT_MODEL,
+                                   factory=ContactSchema)
+    divergence: PlantDivergenceSchema = param(unit="", help="when a run has diverged on this plant",
+                                              model=PLANT_MODEL, factory=PlantDivergenceSchema)
+
+
+@dataclass
 class DDMRConfig:
     robot: RobotConfig = param(unit="", help="the robot and its motors (conf/robot)", model=1)
     terrain: TerrainConfig = param(unit="", help="terrain zones along the distance travelled (conf/terrain)",
@@ -479,6 +582,7 @@ def register_configs() -> None:
     for name, node in [
         ("robot", RobotConfig), ("terrain", TerrainConfig), ("scenario", ScenarioConfig),
         ("sensor", SensorConfig), ("actuator", ActuatorConfig),
+        ("plant_wheel", WheelPlantConfig), ("plant_mujoco", MujocoPlantConfig),
         ("controller_pid", PIDConfig), ("controller_smc", SMCConfig), ("controller_open_loop", OpenLoopConfig),
         ("controller_adaptive_smc", AdaptiveSMCConfig), ("controller_sta", STAConfig), ("controller_adrc", ADRCConfig),
         ("trajectory_line", LineConfig), ("trajectory_circle", CircleConfig),
