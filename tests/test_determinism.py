@@ -230,7 +230,7 @@ def test_non_finite_deviation_counts_as_divergence():
 
 def test_noise_drawn_by_blocks_of_runs_is_the_noise_drawn_at_once():
     """Worker threads each draw their own runs' normals: the same numbers as one draw for all runs."""
-    from ddmr_cli.engine.noise import NoiseStreams
+    from ddmr_cli.model.noise import NoiseStreams
 
     whole = NoiseStreams([5, 6, 7, 8, 9]).next_chunk(40)
     streams = NoiseStreams([5, 6, 7, 8, 9])

@@ -12,7 +12,7 @@ wheel's line, ``w_R`` in the plant's left row) breaks this, while the paper's st
 both wheels cannot see it (both wheels do almost the same there). The gains below differ per wheel by a third or
 more so that such a swap moves the numbers far above the tolerance.
 
-Noise: the terrain's roughness draws one stream per wheel from the run's generator (``engine/noise.py``: right,
+Noise: the terrain's roughness draws one stream per wheel from the run's generator (``model/noise.py``: right,
 left, uncertainty), which a mirror would have to swap; the runs here have no roughness (``terrain=flat`` with its
 roughness 0) but keep the rolling resistance (it opposes each wheel's rotation) and scenario 2's damping
 uncertainty (one stream shared by both wheels, so the mirrored run draws the same), switched on after 0.8 m.

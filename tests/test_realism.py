@@ -12,7 +12,7 @@ from conftest import catalogue
 import ddmr_cli.engine.simulation as simulation_module
 from ddmr_cli import ConfigError, paper_simulation, simulate
 from ddmr_cli.engine.batch import RUN_FIELDS
-from ddmr_cli.engine.noise import NoiseStreams, SensorNoise
+from ddmr_cli.model.noise import NoiseStreams, SensorNoise
 from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.actuator import Actuator
 from ddmr_cli.model.sensor import NOISE_CHANNELS, SENSOR_FIELDS, Sensor

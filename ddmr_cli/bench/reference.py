@@ -9,7 +9,7 @@ terrain disturbance, explicit Euler); every number they use is read from the sam
 :class:`~ddmr_cli.engine.simulation.Simulation` object the engine gets (robot, terrain, scenario, controller, outer
 loop, trajectory, step), through the same set-up functions where the engine has one (the controller's
 ``law_parameters``, :class:`~ddmr_cli.model.robot.NominalModel`, ``Robot.plant``,
-:func:`~ddmr_cli.engine.noise.ou_coefficients`, :func:`~ddmr_cli.model.trajectory.reference_table`), so nothing
+:func:`~ddmr_cli.model.noise.ou_coefficients`, :func:`~ddmr_cli.model.trajectory.reference_table`), so nothing
 numeric is duplicated. ``tests/test_reference.py`` proves it computes the engine's numbers (per seed, to 1e-12
 relative).
 
@@ -18,7 +18,7 @@ controller SMC (``smc_ndo`` or ``smc_ndo_nno``: proportional surface, ``sat`` sw
 without the RBF network), ideal sensor and actuator, control at every plant step, explicit Euler, a scenario
 without damping uncertainty (``paper_1``), any terrain zones, any trajectory (the engine's reference table).
 
-Noise: the engine's :class:`~ddmr_cli.engine.noise.NoiseStreams` (one ``numpy.random.default_rng(seed)`` per run:
+Noise: the engine's :class:`~ddmr_cli.model.noise.NoiseStreams` (one ``numpy.random.default_rng(seed)`` per run:
 3 normals for the OU initial state, then 3 per step, drawn in chunks of at most 16 MiB as the engine draws them),
 so the kernel reads the very same streams; drawing them is part of the timed work (it is of the engine's too).
 
@@ -63,7 +63,7 @@ import numpy as np
 from ddmr_cli.compiled import AVAILABLE, plain
 from ddmr_cli.control import rbf
 from ddmr_cli.control.smc import SMC
-from ddmr_cli.engine.noise import NoiseStreams, ou_coefficients
+from ddmr_cli.model.noise import NoiseStreams, ou_coefficients
 # _initial_wheel_speeds: the engine's own rolling start (read, not copied)
 from ddmr_cli.engine.simulation import Simulation, _initial_wheel_speeds, chunk_steps
 from ddmr_cli.errors import ConfigError

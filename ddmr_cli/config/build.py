@@ -151,8 +151,8 @@ def build_plant(node) -> Any:
         factory = module.factory
     except (ImportError, AttributeError):
         raise ConfigError("plant.name", name, "must name a plant of ddmr_cli.plant with a factory (the "
-                          "conf/plant options: wheel, mujoco)") from None
-    return factory(OmegaConf.to_container(node, resolve=True))
+                          "conf/plant options: wheel, wheel_python, mujoco)") from None
+    return factory(OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node))
 
 
 def seeds_of(cfg: DictConfig) -> list[int]:

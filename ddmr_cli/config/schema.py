@@ -438,9 +438,11 @@ CLUSTER_KEYS = MappingProxyType({
 
 @dataclass
 class WheelPlantConfig:
-    """The paper's plant (docs/model.md §1, §5), inlined in the step loop: nothing to set but its name."""
+    """The paper's plant (docs/model.md §1, §5), inlined in the step loop (``wheel``) or stepped from Python
+    (``wheel_python``, the external-plant contract's reference): nothing to set but its name."""
 
-    name: str = param("wheel", unit="", help="the plant: wheel (the paper's 2x2 wheel model)", model=13)
+    name: str = param("wheel", unit="", help="the plant: wheel (the paper's 2x2 wheel model, compiled) | "
+                      "wheel_python (the same, stepped from Python)", model=13)
 
 
 PLANT_MODEL = 13  # docs/model.md §13, the physics plant

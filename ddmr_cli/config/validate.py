@@ -279,20 +279,21 @@ def check_derived(sim) -> None:
 
 
 def check_plant(cfg: DictConfig, sim) -> None:
-    """An external plant's own checks (``plant=mujoco``: :func:`ddmr_cli.plant.mujoco.validate`, the physics extra
-    installed, the heightfield fine enough for the wheel, the zones and the reference on the field, a timestep
-    MuJoCo holds stable); nothing for the wheel plant."""
-    plant = cfg.get("plant")
-    if plant is None or plant.get("name") != "mujoco":
-        return
-    from ddmr_cli.model.trajectory import reference_table
-    from ddmr_cli.plant import mujoco
+    """An external plant's own checks before anything runs: ``ddmr_cli.plant.<name>.check(config, sim)`` where the
+    plant's module defines it (``plant=mujoco``: the physics extra installed, the heightfield fine enough for the
+    wheel, the zones and the reference on the field, a timestep MuJoCo holds stable; ``plant=wheel_python``: explicit
+    Euler); nothing for the wheel plant."""
+    import importlib
 
-    # the reference every 10 ms over the run (the field's check needs the path, not every step)
-    stride = max(1, int(round(0.01 / float(sim.dt))))
-    table = reference_table(sim.trajectory, sim.n_steps // stride + 1, float(sim.dt) * stride)
-    mujoco.validate(sim.robot, sim.terrain, OmegaConf.to_container(plant, resolve=True), float(sim.dt), table[:, :2],
-                    sim.scenario)
+    from ddmr_cli.plant.wheel import NAME as WHEEL
+
+    plant = cfg.get("plant")
+    name = WHEEL if plant is None else str(plant.get("name", WHEEL))
+    if name == WHEEL:
+        return
+    check = getattr(importlib.import_module(f"ddmr_cli.plant.{name}"), "check", None)
+    if check is not None:
+        check(OmegaConf.to_container(plant, resolve=True), sim)
 
 
 def message(exc: ConfigError, overrides: Iterable[str] = ()) -> str:

@@ -1,6 +1,6 @@
 """The simulation of a batch of seeded runs (docs/model.md §4-5, §7): :class:`Simulation` and :func:`simulate`.
 
-Every run draws its noise from its own generator (:mod:`ddmr_cli.engine.noise`) and nothing couples runs, so seed
+Every run draws its noise from its own generator (:mod:`ddmr_cli.model.noise`) and nothing couples runs, so seed
 k gives bit-identical numbers alone or inside any batch, in any chunking and with any thread count. The step loop
 (:mod:`ddmr_cli.engine.stepper`, compiled per controller by :mod:`ddmr_cli.engine.kernels`) accumulates the
 metrics as it goes and records time series only for the kept seeds, so memory does not grow with the batch
@@ -25,7 +25,7 @@ from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import check_single_signature, compiled_external_step, compiled_run_chunk
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
-from ddmr_cli.engine.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
+from ddmr_cli.model.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SimulationResult, series_channels
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.actuator import Actuator, actuator_fields

@@ -30,9 +30,9 @@ from ddmr_cli.engine.controller_slot import start as controller_start  # control
 from ddmr_cli.engine.controller_slot import update as controller_update  # controller laws
 from ddmr_cli.control.outer_loop import kanayama
 from ddmr_cli.engine.bands import band_row
-from ddmr_cli.engine.integrators import euler, rk4
+from ddmr_cli.model.integrators import euler, rk4
 from ddmr_cli.engine.metrics import accumulate, flush
-from ddmr_cli.engine.noise import ou_step
+from ddmr_cli.model.noise import ou_step
 from ddmr_cli.engine.results import record
 from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.kinematics import deviation, inverse, pose_error

@@ -17,7 +17,7 @@ The sensor is sampled at the control instants (``control.rate``), every ``T`` se
     ``position_std`` [m], ``heading_std`` [rad]).
 
 Noise is drawn from the run's sensor stream, a generator of its own derived from the seed
-(:class:`ddmr_cli.engine.noise.SensorNoise`), only when a std is above zero: the disturbance streams of a seed are
+(:class:`ddmr_cli.model.noise.SensorNoise`), only when a std is above zero: the disturbance streams of a seed are
 the same with or without sensor noise.
 """
 

@@ -41,7 +41,8 @@ every run (``external_control`` of the step loop), :meth:`step`, then the compil
 :meth:`state` and :meth:`true_disturbance` (``external_account``), and marks the runs :meth:`diverged` flags.
 
 A second plant is one module ``ddmr_cli.plant.<name>`` implementing this protocol with a ``factory(config)`` that
-returns a callable ``(simulation, threads) -> plant`` (:func:`ddmr_cli.plant.mujoco.factory`), plus one
+returns a callable ``(simulation, threads) -> plant`` (:func:`ddmr_cli.plant.mujoco.factory`) and optionally a
+``check(config, simulation)`` that config validation calls before anything runs, plus one
 ``conf/plant/<name>.yaml`` whose ``name`` is the module's; the engine, the
 metrics, the report and the determinism rules (same seed, same numbers, whatever the thread count) come with it.
 """

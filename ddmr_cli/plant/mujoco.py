@@ -32,7 +32,7 @@ from ddmr_cli.model.terrain import Terrain
 from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_robot, elevation_range, field_layout,
                                          heightfield, mjcf, normalised, rough_phases, substeps)
 
-__all__ = ["MujocoPlant", "factory", "import_mujoco", "validate", "EXTRA_HINT"]
+__all__ = ["MujocoPlant", "check", "factory", "import_mujoco", "validate", "EXTRA_HINT"]
 
 #: the one line a missing extra prints
 EXTRA_HINT = 'needs MuJoCo, the optional extra: pip install -e ".[physics]"'
@@ -66,6 +66,17 @@ def validate(robot: Robot, terrain: Terrain, config: PhysicsConfig | Mapping, dt
         check_reference(robot, config.heightfield, np.asarray(reference_xy, dtype=float))
     rough_phases(scenario)
     return config
+
+
+def check(config: Mapping, sim) -> None:
+    """The checks of ``plant=mujoco`` for a simulation, before it runs (config validation): :func:`validate` on its
+    robot, terrain, step and scenario, with the reference path every 10 ms over the run (the field's check needs the
+    path, not every step)."""
+    from ddmr_cli.model.trajectory import reference_table
+
+    stride = max(1, int(round(0.01 / float(sim.dt))))
+    table = reference_table(sim.trajectory, sim.n_steps // stride + 1, float(sim.dt) * stride)
+    validate(sim.robot, sim.terrain, config, float(sim.dt), table[:, :2], sim.scenario)
 
 
 def factory(config: Mapping) -> Callable[..., "MujocoPlant"]:

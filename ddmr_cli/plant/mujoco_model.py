@@ -36,7 +36,7 @@ __all__ = ["HeightfieldConfig", "WheelConfig", "CasterConfig", "ChassisConfig", 
            "mjcf", "TERRAIN_STREAM", "WHEEL_SHAPES"]
 
 #: the spawn key that derives a run's heightfield from its seed (child 2 of ``SeedSequence(seed)``; child 1 is
-#: the sensor's stream, :data:`ddmr_cli.engine.noise.SENSOR_STREAM`)
+#: the sensor's stream, :data:`ddmr_cli.model.noise.SENSOR_STREAM`)
 TERRAIN_STREAM = 2
 
 WHEEL_SHAPES = ("sphere", "cylinder")

@@ -5,7 +5,7 @@ nothing per step and its numbers are the regression fixture's:
 
 - :func:`ddmr_cli.model.robot.wheel_acceleration`: the acceleration (8) and the true lumped disturbance d under
   the applied voltages, the terrain's torques and scenario 2's damping scale;
-- :func:`ddmr_cli.engine.integrators.euler` and :func:`~ddmr_cli.engine.integrators.rk4`: the wheel speeds and the
+- :func:`ddmr_cli.model.integrators.euler` and :func:`~ddmr_cli.model.integrators.rk4`: the wheel speeds and the
   pose (4) one plant step on;
 - :func:`ddmr_cli.model.robot.disturbance`: the terrain's torques (5).
 
@@ -20,7 +20,7 @@ from ddmr_cli.model.robot import disturbance, wheel_acceleration
 
 #: the name of the default plant (``plant.name`` of conf/plant/wheel.yaml)
 NAME = "wheel"
-#: the model's laws that make the wheel plant (the step loop integrates them with engine/integrators.py)
+#: the model's laws that make the wheel plant (the step loop integrates them with model/integrators.py)
 LAWS = (wheel_acceleration, disturbance)
 
 __all__ = ["NAME", "LAWS"]
