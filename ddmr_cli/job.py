@@ -33,17 +33,21 @@ log = logging.getLogger("ddmr")
 
 @dataclass(frozen=True)
 class JobPlace:
-    """Where a job runs: its output dir, its overrides (as given) and whether it is one job of a sweep (then its
-    failure is recorded and returned, not raised, and it simulates on one thread unless ``run.threads`` says
-    otherwise). The Hydra task function (:mod:`ddmr_cli.cli.hydra_main`) reads them from Hydra's runtime."""
+    """Where a job runs: its output dir, its overrides (as given), whether it is one job of a sweep (then its
+    failure is recorded and returned, not raised) and whether that sweep's jobs run one after another in one
+    process (Hydra's basic launcher: ``launcher=basic``, and the in-process path of a small local sweep) rather than
+    in parallel processes. The Hydra task function (:mod:`ddmr_cli.cli.hydra_main`) reads them from Hydra's
+    runtime."""
 
     out: Path
     overrides: tuple[str, ...] = ()
     in_sweep: bool = False
+    one_at_a_time: bool = False
 
     def threads(self, cfg: DictConfig) -> int:
-        """``run.threads``, else one thread in a sweep (its jobs already run in parallel processes), else all."""
-        return int(cfg.run.threads) or (1 if self.in_sweep else 0)
+        """``run.threads``, else one thread for a job of a sweep whose jobs run in parallel processes, else every
+        core (a single run, or a sweep's jobs run one after another: table4 in process, 0.8x the wall)."""
+        return int(cfg.run.threads) or (1 if self.in_sweep and not self.one_at_a_time else 0)
 
 
 #: what a job does: ``task(cfg, place, digest, sim) -> summary`` (default :func:`execute`)

@@ -25,9 +25,11 @@ Plugins.instance().register(DdmrOptunaSweeper)
 
 
 def job_place() -> JobPlace:
-    """This job's output dir, overrides and whether it runs inside a multirun, from Hydra's runtime."""
+    """This job's output dir, overrides, whether it runs inside a multirun and whether that multirun's jobs run one
+    after another in this process (Hydra's basic launcher), from Hydra's runtime."""
     hc = HydraConfig.get()
-    return JobPlace(Path(hc.runtime.output_dir), tuple(hc.overrides.task), "MULTIRUN" in str(hc.mode))
+    serial = str(hc.launcher.get("_target_", "")).endswith(".BasicLauncher")
+    return JobPlace(Path(hc.runtime.output_dir), tuple(hc.overrides.task), "MULTIRUN" in str(hc.mode), serial)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")

@@ -188,10 +188,19 @@ class CompositionMemo(OverrideParser):
         multirun = run_mode == RunMode.MULTIRUN
         kept = self._kept.get(key)
         if kept is None or (kept[0] and not multirun):
-            cfg = compose(config_name=config_name, overrides=list(core), run_mode=run_mode, from_shell=from_shell,
-                          validate_sweep_overrides=validate_sweep_overrides)
-            derived = str(cfg.hydra.job.get("name")) == str(JobRuntime().get("name"))
-            kept = self._kept[key] = (multirun, pickle.dumps(cfg, protocol=pickle.HIGHEST_PROTOCOL), derived)
+            from ddmr_cli.config.skeleton_cache import cached_composition
+
+            def composed() -> tuple[bool, bytes, bool]:
+                cfg = compose(config_name=config_name, overrides=list(core), run_mode=run_mode,
+                              from_shell=from_shell, validate_sweep_overrides=validate_sweep_overrides)
+                derived = str(cfg.hydra.job.get("name")) == str(JobRuntime().get("name"))
+                return multirun, pickle.dumps(cfg, protocol=pickle.HIGHEST_PROTOCOL), derived
+
+            # kept on disk between processes when the search path is the packaged config's (skeleton_cache)
+            kept, loaded = cached_composition(key, multirun, composed)
+            self._kept[key] = kept
+            if loaded and validate_sweep_overrides:
+                check_sweep_overrides(parsed, run_mode, from_shell)
         elif validate_sweep_overrides:
             check_sweep_overrides(parsed, run_mode, from_shell)
         _, blob, derived_name = kept

@@ -377,8 +377,9 @@ class RunConfig:
     bands: bool = param(unit="", help="mean and 5-95 % band over all seeds of deviation, pose errors, u and s at "
                         "every grid step (bands.npz, drawn in the report's time-series figures)",
                         range="true | false", model=7)
-    threads: int = param(unit="1", help="threads of the compiled engine (0: all cores for a single run, 1 per "
-                         "job in a sweep)", range="integer >= 0")
+    threads: int = param(unit="1", help="threads of the compiled engine (0: all cores for a single run or a sweep "
+                         "whose jobs run one after another in this process, launcher=basic; 1 per job of a sweep in "
+                         "parallel processes)", range="integer >= 0")
 
 
 @dataclass
@@ -524,8 +525,8 @@ class MujocoPlantConfig:
                       "physics extra)", model=PLANT_MODEL)
     timestep: float = param(unit="s", help="MuJoCo's step", range="> 0; simulation.dt a whole multiple of it",
                             model=PLANT_MODEL)
-    threads: int = param(unit="1", help="worker threads stepping a batch's runs; 0 = run.threads (1 per job in a "
-                         "sweep, else every core)", range=">= 0", model=PLANT_MODEL)
+    threads: int = param(unit="1", help="worker threads stepping a batch's runs; 0 = run.threads' choice (1 per "
+                         "job of a sweep in parallel processes, else every core)", range=">= 0", model=PLANT_MODEL)
     settle_time: float = param(unit="s", help="the robot settles onto its ground (held still) before the run",
                                range=">= 0", model=PLANT_MODEL)
     heightfield: HeightfieldSchema = param(unit="", help="the ground's extent and roughness mapping",

@@ -57,14 +57,15 @@ _LAW_IMPORT = re.compile(r"^from ddmr_cli\.engine\.controller_slot import (\w+) 
                          re.MULTILINE)
 
 
-def cache_dir() -> Path:
-    """Where generated step loops and their compiled code live (see the module docstring)."""
+def cache_dir(kind: str = "kernels") -> Path:
+    """Where generated step loops and their compiled code live (see the module docstring); another ``kind`` is a
+    sibling directory of ddmr's cache (``skeletons``: :mod:`ddmr_cli.config.skeleton_cache`)."""
     candidates = [os.environ.get("DDMR_CACHE_DIR"),
                   os.path.join(os.environ["XDG_CACHE_HOME"], "ddmr") if os.environ.get("XDG_CACHE_HOME") else None,
                   os.path.join(os.path.expanduser("~"), ".cache", "ddmr"),
                   os.path.join(tempfile.gettempdir(), f"ddmr-cache-{os.getuid() if hasattr(os, 'getuid') else 0}")]
     for candidate in filter(None, candidates):
-        path = Path(candidate) / "kernels"
+        path = Path(candidate) / kind
         try:
             path.mkdir(parents=True, exist_ok=True)
             if os.access(path, os.W_OK):

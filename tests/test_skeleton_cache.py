@@ -1,0 +1,112 @@
+"""Compositions kept on disk between processes (ddmr_cli/config/skeleton_cache.py): a loaded composition is the
+composition, a change of the config makes a new key, a damaged file is composed again, a user's config dir is
+never cached."""
+
+from __future__ import annotations
+
+import pickle
+
+import pytest
+from omegaconf import OmegaConf
+
+from ddmr_cli.config import compose_config, skeleton_cache
+from ddmr_cli.config.compose_once import compositions_once
+
+KEY = ("config", (("hydra", "pkg://hydra.conf"), ("main", "pkg://ddmr_cli.conf"), ("schema", "structured://")),
+       "/some/dir", ("controller=pid",))
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("DDMR_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv(skeleton_cache.SWITCH, raising=False)
+    return tmp_path / "skeletons"
+
+
+def _made(value="a"):
+    calls = []
+
+    def compose():
+        calls.append(1)
+        return (False, pickle.dumps({"value": value}), True)
+
+    return compose, calls
+
+
+def test_a_composition_is_made_once_then_loaded_as_it_was(cache):
+    compose, calls = _made()
+    first, loaded = skeleton_cache.cached_composition(KEY, False, compose)
+    again, loaded_again = skeleton_cache.cached_composition(KEY, False, compose)
+    assert (loaded, loaded_again, len(calls)) == (False, True, 1)
+    assert again == first and len(list(cache.glob("*.pkl"))) == 1
+    # another mode, another working dir or other overrides: another entry
+    skeleton_cache.cached_composition(KEY, True, compose)
+    skeleton_cache.cached_composition((*KEY[:2], "/other", KEY[3]), False, compose)
+    skeleton_cache.cached_composition((*KEY[:3], ("controller=smc",)), False, compose)
+    assert len(calls) == 4 and len(list(cache.glob("*.pkl"))) == 4
+
+
+def test_a_damaged_file_is_composed_again_and_replaced(cache):
+    compose, calls = _made()
+    skeleton_cache.cached_composition(KEY, False, compose)
+    [path] = cache.glob("*.pkl")
+    path.write_bytes(path.read_bytes()[:10])  # a crash mid-write of an older version
+    kept, loaded = skeleton_cache.cached_composition(KEY, False, compose)
+    assert not loaded and len(calls) == 2 and pickle.loads(kept[1]) == {"value": "a"}
+    assert skeleton_cache.cached_composition(KEY, False, compose)[1]  # replaced by a whole file
+
+
+def test_a_user_config_dir_or_the_switch_is_never_cached(cache, monkeypatch):
+    compose, calls = _made()
+    user = ("config", (("main", "file:///home/me/conf"),), "/d", ())
+    skeleton_cache.cached_composition(user, False, compose)
+    skeleton_cache.cached_composition(user, False, compose)
+    monkeypatch.setenv(skeleton_cache.SWITCH, "0")
+    skeleton_cache.cached_composition(KEY, False, compose)
+    assert len(calls) == 3 and not cache.exists()
+
+
+def test_an_edit_of_any_config_file_changes_the_key(monkeypatch):
+    before = skeleton_cache.config_digest()
+    real = skeleton_cache._files
+
+    def edited(node, prefix=""):
+        for name, data in real(node, prefix):
+            yield name, (data + b"\n# edited" if name == "controller/pid.yaml" else data)
+
+    monkeypatch.setattr(skeleton_cache, "_files", edited)
+    skeleton_cache.config_digest.cache_clear()
+    try:
+        assert skeleton_cache.config_digest() != before
+    finally:
+        monkeypatch.undo()
+        skeleton_cache.config_digest.cache_clear()
+    assert skeleton_cache.config_digest() == before
+
+
+@pytest.mark.parametrize("overrides", [["controller=pid", "scenario=paper_2"], ["+experiment=table4"],
+                                       ["controller=smc", "controller.lam=7", "sensor=encoder"]])
+def test_a_loaded_composition_equals_hydras(cache, overrides, monkeypatch):
+    """Through the CLI's memo: the first process composes and keeps it, a second (a new memo) loads it; both equal
+    Hydra's own composition with the cache off."""
+    real, loaded = skeleton_cache.cached_composition, []
+
+    def recording(*args):
+        kept, was_loaded = real(*args)
+        loaded.append(was_loaded)
+        return kept, was_loaded
+
+    monkeypatch.setattr(skeleton_cache, "cached_composition", recording)
+    results = []
+    for _ in range(2):
+        with compositions_once():
+            results.append(OmegaConf.to_container(compose_config(overrides, return_hydra_config=True)))
+    assert loaded == [False, True]  # composed by the first memo, loaded by the second
+    import os
+
+    os.environ[skeleton_cache.SWITCH] = "0"
+    try:
+        hydra_own = OmegaConf.to_container(compose_config(overrides, return_hydra_config=True))
+    finally:
+        del os.environ[skeleton_cache.SWITCH]
+    assert results[0] == hydra_own and results[1] == hydra_own
