@@ -76,29 +76,47 @@ class Paired:
 def paired(a, b, level: float = CI_LEVEL) -> Paired | None:
     """Compare two per-seed pandas Series (index: seed); None when no seed is common to both.
 
-    ``level``: the confidence level of the percentile bootstrap intervals (default :data:`CI_LEVEL`), which are
-    the ``(1 - level) / 2`` and ``(1 + level) / 2`` quantiles of the resampled statistic."""
+    ``level``: the confidence level of the percentile bootstrap intervals (default :data:`CI_LEVEL`):
+    ``scipy.stats.bootstrap`` with ``paired=True`` (the seeds resampled in pairs), ``method="percentile"``,
+    :data:`N_BOOT` resamples from a Generator seeded :data:`BOOT_SEED`, once for the difference of the means and
+    once for the reduction (the same resamples both times: the same seed draws the same indices). A resample whose
+    reference mean is 0 makes the reduction's interval NaN."""
     if not 0.0 < level < 1.0:
         raise ValueError(f"level must be in (0, 1), got {level!r}")
-    central = 100.0 * level  # 95.0 exactly for 0.95: the tails below are 2.5 and 97.5 exactly
-    tails = [(100.0 - central) / 2.0, (100.0 + central) / 2.0]
     joined = a.rename("a").to_frame().join(b.rename("b"), how="inner").dropna()
     n = len(joined)
     if n == 0:
         return None
     x, y = joined["a"].to_numpy(float), joined["b"].to_numpy(float)
-    rng = np.random.default_rng(BOOT_SEED)
-    idx = rng.integers(0, n, size=(N_BOOT, n))
-    ma, mb = x[idx].mean(axis=1), y[idx].mean(axis=1)
-    diff_ci = tuple(float(v) for v in np.percentile(mb - ma, tails))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        red = 1.0 - mb / ma
-    red = red[np.isfinite(red)]
-    red_ci = tuple(float(v) for v in np.percentile(red, tails)) if red.size else (math.nan, math.nan)
+
+    def difference(x, y, axis=-1):
+        return np.mean(y, axis=axis) - np.mean(x, axis=axis)
+
+    def reduction_of(x, y, axis=-1):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return 1.0 - np.mean(y, axis=axis) / np.mean(x, axis=axis)
+
+    diff_ci, red_ci = (_percentile_ci(x, y, statistic, level) for statistic in (difference, reduction_of))
     mean_a, mean_b = float(x.mean()), float(y.mean())
     reduction = 1.0 - mean_b / mean_a if mean_a != 0 else math.nan
     p, stat = _wilcoxon(y - x)
     return Paired(n, mean_a, mean_b, mean_b - mean_a, diff_ci, reduction, red_ci, p, stat)
+
+
+def _percentile_ci(x: np.ndarray, y: np.ndarray, statistic, level: float) -> tuple[float, float]:
+    """The paired percentile bootstrap interval of ``statistic(x, y)`` (``scipy.stats.bootstrap``); NaN where a
+    resample's statistic is not finite; (nan, nan) for a single pair (nothing to resample)."""
+    from scipy import stats
+
+    if len(x) < 2:
+        value = float(statistic(x, y))
+        return (value, value) if math.isfinite(value) else (math.nan, math.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a degenerate sample (every pair equal) is an interval of width 0 here
+        ci = stats.bootstrap((x, y), statistic, paired=True, vectorized=True, n_resamples=N_BOOT,
+                             confidence_level=level, method="percentile",
+                             random_state=np.random.default_rng(BOOT_SEED)).confidence_interval
+    return float(ci.low), float(ci.high)
 
 
 def _wilcoxon(d: np.ndarray) -> tuple[float, float]:
