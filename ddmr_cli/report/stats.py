@@ -80,7 +80,8 @@ def paired(a, b, level: float = CI_LEVEL) -> Paired | None:
     ``scipy.stats.bootstrap`` with ``paired=True`` (the seeds resampled in pairs), ``method="percentile"``,
     :data:`N_BOOT` resamples from a Generator seeded :data:`BOOT_SEED`, once for the difference of the means and
     once for the reduction (the same resamples both times: the same seed draws the same indices). A resample whose
-    reference mean is 0 makes the reduction's interval NaN."""
+    reference mean is 0 has an infinite reduction, which the percentiles keep: the interval is then unbounded on that
+    side (the hand-written bootstrap this replaced dropped such resamples)."""
     if not 0.0 < level < 1.0:
         raise ValueError(f"level must be in (0, 1), got {level!r}")
     joined = a.rename("a").to_frame().join(b.rename("b"), how="inner").dropna()
@@ -104,8 +105,8 @@ def paired(a, b, level: float = CI_LEVEL) -> Paired | None:
 
 
 def _percentile_ci(x: np.ndarray, y: np.ndarray, statistic, level: float) -> tuple[float, float]:
-    """The paired percentile bootstrap interval of ``statistic(x, y)`` (``scipy.stats.bootstrap``); NaN where a
-    resample's statistic is not finite; (nan, nan) for a single pair (nothing to resample)."""
+    """The paired percentile bootstrap interval of ``statistic(x, y)`` (``scipy.stats.bootstrap``); for a single
+    pair (scipy needs two) the interval of width 0 at its value, which is what every resample of one pair gives."""
     from scipy import stats
 
     if len(x) < 2:
