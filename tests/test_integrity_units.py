@@ -343,3 +343,30 @@ def test_the_reaper_ends_workers_and_leaves_the_resource_trackers(tmp_path):
         for proc in (worker, tracker, other):
             proc.kill()
             proc.wait()
+
+
+def test_a_writer_refused_before_the_holder_records_itself_names_it_once_it_does(tmp_path):
+    """A holder takes the lock, then records itself: a writer refused in between waits (up to
+    jobdir.HOLDER_WAIT) for the record and names the holder's pid, not 'another ddmr process'."""
+    import json
+    import threading
+
+    from filelock import FileLock
+
+    from ddmr_cli.storage import jobdir
+
+    out = tmp_path / "out"
+    out.mkdir()
+    held = FileLock(out / jobdir.LOCK, timeout=0)
+    held.acquire()
+    record = {"pid": os.getpid(), "host": socket.gethostname(), "command": "ddmr run", "started": "now"}
+    late = threading.Timer(0.3, lambda: (out / jobdir.LOCK).write_text(json.dumps(record) + "\n"))
+    late.start()
+    try:
+        with pytest.raises(jobdir.LockedError) as info:
+            with jobdir.DirLock(out):
+                pass
+    finally:
+        late.join()
+        held.release()
+    assert f"in use by pid {os.getpid()} on {socket.gethostname()}" in str(info.value)

@@ -478,8 +478,8 @@ class DirLock:
             self.directory.mkdir(parents=True, exist_ok=True)
             lock.acquire()
         except Timeout:
-            raise LockedError(self.directory, f"in use by {_describe(read_holder(self.directory, self.name))}; wait "
-                                              "for it to finish or choose another output dir") from None
+            raise LockedError(self.directory, f"in use by {_describe(_live_holder(self.directory, self.name))}; "
+                                              "wait for it to finish or choose another output dir") from None
         except OSError as exc:
             raise fault(exc) from None
         conflict = tree_conflict(self.directory, self.kind) if self.kind else None
@@ -503,6 +503,24 @@ class DirLock:
         if self.lock is not None:
             self.lock.release()
             self.lock = None
+
+
+#: how long a refused writer waits for the lock's holder to record itself (it records just after it locks)
+HOLDER_WAIT = 2.0
+
+
+def _live_holder(directory: Path, name: str = LOCK, wait: float = HOLDER_WAIT) -> dict | None:
+    """The lock's holder as it records itself, waiting up to ``wait`` seconds for the record: a holder takes the
+    lock, checks the tree, then writes its record, so a writer refused in between would read nothing (or an
+    earlier, finished holder's record). Returns the first record of a live process, else None."""
+    deadline = time.monotonic() + wait
+    while True:
+        holder = read_holder(directory, name)
+        if holder and isinstance(holder.get("pid"), int) and _alive(holder["pid"], holder.get("host")):
+            return holder  # (a holder on another host, on a shared file system, is taken at its word)
+        if time.monotonic() >= deadline:
+            return None
+        time.sleep(0.02)
 
 
 def read_holder(directory: Path, name: str = LOCK) -> dict | None:
