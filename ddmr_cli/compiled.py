@@ -56,6 +56,14 @@ def law(fn):
     return njit(nogil=True)(fn) if AVAILABLE else fn
 
 
+def inlined_law(fn):
+    """As :func:`law`, and inlined by numba itself into every compiled caller (``inline="always"``), for the step
+    loop's per-step bookkeeping (:func:`ddmr_cli.engine.metrics.accumulate`): LLVM does not inline a law that size,
+    and calling it out of line passes every argument (a dozen arrays among them) at every step. Measured on the
+    metrics alone: 198 -> 146 ns per run and step (smc_ndo, 50 runs, one core), the same numbers."""
+    return njit(nogil=True, inline="always")(fn) if AVAILABLE else fn
+
+
 def cached_law(fn):
     """As :func:`law`, cached on disk: for the generated copies of the step loop only (see the module docstring)."""
     return njit(cache=True, nogil=True)(fn) if AVAILABLE else fn
@@ -82,4 +90,4 @@ def thread_count(n: int) -> int:
     return max(1, int(n) if n else cores)
 
 
-__all__ = ["AVAILABLE", "cached_law", "jit_enabled", "law", "plain", "thread_count"]
+__all__ = ["AVAILABLE", "cached_law", "inlined_law", "jit_enabled", "law", "plain", "thread_count"]

@@ -47,4 +47,4 @@ class World(NamedTuple):
     actuator: object  # the actuator's ActuatorParameters
     surface: int  # the row of the controller's SURFACE diagnostic channel (-1: none, s is NaN)
     recorded: np.ndarray  # (n,) int64: the rows of the other diagnostic channels, recorded after the base series
-    estimation: np.ndarray  # (n_estimation_metrics, n_rows) int64: 1 where a channel's estimate counts in a metric
+    estimation: np.ndarray  # (n_estimation_metrics, n_rows) int64: the channels whose estimates count in a metric, then -1

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import inlined_law, law
 
 #: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
 SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturated",
@@ -64,14 +64,16 @@ ESTIMATION_METRICS: dict[str, tuple[str, ...] | None] = {"d_est_mae": None, "d_e
 
 
 def estimation_membership(channels) -> np.ndarray:
-    """``(len(ESTIMATION_METRICS), max(1, n))`` int64: 1 where channel ``c`` (a
-    :class:`~ddmr_cli.control.base.Diagnostic`) is an estimate that counts in metric ``i``."""
+    """``(len(ESTIMATION_METRICS), max(1, n))`` int64: row ``i`` lists, in channel order, the channels ``c`` (a
+    :class:`~ddmr_cli.control.base.Diagnostic` each) whose estimate counts in metric ``i``, then -1 (the step loop
+    subtracts the listed channels and stops at the first -1)."""
     from ddmr_cli.control.base import ESTIMATE
 
-    out = np.zeros((len(ESTIMATION_METRICS), max(1, len(channels))), dtype=np.int64)
+    out = np.full((len(ESTIMATION_METRICS), max(1, len(channels))), -1, dtype=np.int64)
     for i, names in enumerate(ESTIMATION_METRICS.values()):
-        for c, channel in enumerate(channels):
-            out[i, c] = channel.kind == ESTIMATE and (names is None or channel.name in names)
+        members = [c for c, channel in enumerate(channels)
+                   if channel.kind == ESTIMATE and (names is None or channel.name in names)]
+        out[i, :len(members)] = members
     return out
 
 
@@ -138,7 +140,7 @@ def flush(sums, r, acc):
     acc["block_key"] = -1
 
 
-@law
+@inlined_law
 def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, phase_segment, t, dev, e_x, e_y, e_theta, saturated,
                u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, diagnostics, estimation, k_e, r_a, hp, hp_zi):
     """Add step ``k`` of run ``r`` to ``sums[r, segment, column]`` (columns: :data:`SUMS`; docs/model.md §7).
@@ -147,8 +149,9 @@ def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, p
     also been ``zone_settle_steps`` in that zone (phase). ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]``
     (direct form II transposed, as ``scipy.signal.sosfilt``), its state ``acc["hp_state"]`` started at
     ``hp_zi * u`` on the first step (no transient); ``acc["u_prev"]`` is the last voltage, for the total variation.
-    ``diagnostics[c, wheel]`` are the controller's channels, ``estimation[i, c]`` 1 where channel ``c``'s estimate
-    counts in estimation metric ``i`` (:data:`ESTIMATION_METRICS`: all estimates, the NDO alone).
+    ``diagnostics[c, wheel]`` are the controller's channels, ``estimation[i]`` the channels whose estimates count in
+    estimation metric ``i`` (then -1; :func:`estimation_membership`; :data:`ESTIMATION_METRICS`: all estimates,
+    the NDO alone).
     """
     if not acc["started"]:
         acc["u_prev"][0], acc["u_prev"][1] = u_R, u_L
@@ -184,9 +187,11 @@ def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, p
         d = d_R if w == 0 else d_L
         for i in range(estimation.shape[0]):  # one pair of abs_dtilde columns per ESTIMATION_METRICS entry
             dtilde = d
-            for c in range(estimation.shape[1]):
-                if estimation[i, c]:
-                    dtilde -= diagnostics[c, w]
+            for m in range(estimation.shape[1]):
+                c = estimation[i, m]
+                if c < 0:
+                    break
+                dtilde -= diagnostics[c, w]
             b[14 + 2 * i + w] += abs(dtilde)
         b[18 + w] += abs(s_R if w == 0 else s_L)
         b[20 + w] += u
