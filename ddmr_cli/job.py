@@ -12,6 +12,8 @@ single run prints one line (``ddmr: error: <path>: <reason>`` for a file-system 
 
 from __future__ import annotations
 
+import contextlib
+
 import logging
 import platform
 import sys
@@ -175,13 +177,30 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
     from ddmr_cli.progress import StepBar
 
     label = f"{sim.controller.name}/{sim.scenario.name}"
-    progress = StepBar(label, len(seeds), sim.n_steps, enabled=bool(cfg.run.progress) and bars)
-    try:
-        result = simulate(sim, seeds, keep_series=kept_seeds(cfg.run), progress=progress, threads=threads,
-                          bands=bool(cfg.run.bands),
-                          compiling=(lambda: progress.compiling(sim.controller.name)) if cfg.run.progress else None)
-    finally:
-        progress.close()
+    keep = kept_seeds(cfg.run)
+    # a single run's figures: processes forked now import matplotlib while this one simulates (plots/processes.py)
+    drawing = _plot_processes() if cfg.run.plots and keep and bars else contextlib.nullcontext()
+    with drawing as plot_processes:
+        progress = StepBar(label, len(seeds), sim.n_steps, enabled=bool(cfg.run.progress) and bars)
+        try:
+            result = simulate(sim, seeds, keep_series=keep, progress=progress, threads=threads,
+                              bands=bool(cfg.run.bands),
+                              compiling=(lambda: progress.compiling(sim.controller.name)) if cfg.run.progress
+                              else None)
+        finally:
+            progress.close()
+        summary = _write(cfg, sim, result, out, overrides, digest, plot_processes)
+    return summary
+
+
+def _plot_processes():
+    from ddmr_cli.plots.processes import PlotProcesses
+
+    return PlotProcesses()
+
+
+def _write(cfg: DictConfig, sim, result, out: Path, overrides, digest, plot_processes) -> dict:
+    """Every output file of a simulated job into ``out``; the figures by ``plot_processes`` when given."""
     io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
@@ -193,8 +212,9 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
             from ddmr_cli.plots.run import run_plots
 
             seed = next(iter(result.series))
-            run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
-                      settle_time=float(cfg.metrics.settle_time))
+            draw = plot_processes.draw if plot_processes is not None else run_plots
+            draw(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
+                 settle_time=float(cfg.metrics.settle_time))
     return {
         "status": "complete",
         "controller": result.controller,

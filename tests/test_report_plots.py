@@ -96,6 +96,87 @@ def test_run_plots_use_the_shared_helpers(tmp_path):
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in paths)
 
 
+def _run_series(n: int = 3000) -> dict:
+    t = np.linspace(0, 3, n)
+    series = {c: np.zeros(n) for c in ("x_ref", "y_ref", "x", "y", "deviation", "e_x", "e_y", "e_theta",
+                                        "u_right", "u_left", "s_right", "s_left", "d_true_right",
+                                        "d_hat_ndo_right", "d_hat_nn_right")}
+    series.update(t=t, x_ref=t, x=t, y=0.01 * np.sin(t), deviation=0.01 + 0.001 * t)
+    return series
+
+
+def test_plot_processes_draw_every_figure_and_end(tmp_path):
+    """``ddmr run``'s figures drawn by the forked processes: the same files as drawn in the job's process (same
+    names, valid PNGs, same pixel size), each by another process, and no process left behind."""
+    import multiprocessing
+    import os
+
+    from ddmr_cli.plots import run as R
+    from ddmr_cli.plots.processes import PlotProcesses
+
+    drawers = tmp_path / "drawers"
+    drawers.mkdir()
+    real = dict(R.FIGURES)
+
+    def recording(name):
+        def draw(run, out_dir):
+            (drawers / f"{name}.{os.getpid()}").touch()
+            return real[name](run, out_dir)
+        return draw
+
+    R.FIGURES.update({name: recording(name) for name in real})
+    try:
+        with PlotProcesses() as processes:
+            paths = processes.draw(_run_series(), "smc_ndo", "paper_1", 0, tmp_path / "forked")
+    finally:
+        R.FIGURES.update(real)
+    here = R.run_plots(_run_series(), "smc_ndo", "paper_1", 0, tmp_path / "here")
+    assert [p.name for p in paths] == [p.name for p in here] == ["trajectory.png", "errors.png", "control.png"]
+    for forked, local in zip(paths, here):
+        assert forked.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert forked.read_bytes()[16:24] == local.read_bytes()[16:24]  # IHDR: width and height
+    pids = {p.name.split(".")[1] for p in drawers.iterdir()}
+    assert len(pids) == 3 and str(os.getpid()) not in pids  # one process a figure, none of them this one
+    assert not multiprocessing.active_children()
+
+
+def test_a_failing_plot_process_leaves_its_figure_to_the_job(tmp_path):
+    """A drawing process that fails (here: its figure raises in it) reports it, and the job draws that figure
+    itself: every figure is there, the others drawn by the processes."""
+    import os
+
+    from ddmr_cli.plots import run as R
+    from ddmr_cli.plots.processes import PlotProcesses
+
+    job = os.getpid()
+    real = R.FIGURES["control"]
+
+    def only_here(run, out_dir):
+        if os.getpid() != job:
+            raise RuntimeError("no drawing in this process")
+        return real(run, out_dir)
+
+    R.FIGURES["control"] = only_here
+    try:
+        with PlotProcesses() as processes:
+            paths = processes.draw(_run_series(), "smc_ndo", "paper_1", 0, tmp_path)
+    finally:
+        R.FIGURES["control"] = real
+    assert [p.name for p in paths] == ["trajectory.png", "errors.png", "control.png"]
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in paths)
+
+
+def test_plot_processes_end_when_nothing_is_drawn():
+    """A job that fails before its figures (or keeps no series) ends its drawing processes on the way out."""
+    import multiprocessing
+
+    from ddmr_cli.plots.processes import PlotProcesses
+
+    with PlotProcesses():
+        pass
+    assert not multiprocessing.active_children()
+
+
 # --- numbers from time series -------------------------------------------------------------------------------------
 def test_nn_share_on_constructed_signals():
     n = 1000
@@ -171,3 +252,44 @@ def test_figure_eight_covers_a_whole_eight_in_the_default_duration():
     a = float(cfg.trajectory.amplitude)
     assert xy[:, 0].min() < -0.99 * a and xy[:, 0].max() > 0.99 * a  # both lobes
     assert np.hypot(*xy[-1]) < 1e-6 * a  # back at the start: the eight is closed
+
+
+def test_plot_processes_end_when_the_job_is_killed():
+    """Killed (SIGKILL) while its drawing processes wait for a series, a job leaves none of them behind: each
+    keeps only its own pipe's end, so the job's death closes every pipe they wait on."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    code = ("import time\nfrom ddmr_cli.plots.processes import PlotProcesses\nprocesses = PlotProcesses()\n"
+            "print('started', flush=True)\ntime.sleep(60)\n")
+    job = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert job.stdout.readline().strip() == "started"
+
+    def descendants(pid):
+        kids = subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True).stdout.split()
+        return [int(k) for k in kids] + [d for k in kids for d in descendants(int(k))]
+
+    deadline = time.monotonic() + 20.0
+    while len(drawing := descendants(job.pid)) < 3 and time.monotonic() < deadline:
+        time.sleep(0.1)  # the drawing process imports matplotlib, then forks its copies
+    assert len(drawing) == 3  # the drawing process and its two copies
+    os.kill(job.pid, signal.SIGKILL)
+    job.wait()
+
+    def running(pid):
+        try:
+            with open(f"/proc/{pid}/stat") as fh:
+                return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+        except OSError:
+            return False
+
+    deadline = time.monotonic() + 10.0
+    while any(map(running, drawing)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [pid for pid in drawing if running(pid)]
+    for pid in left:  # a failure leaves nothing behind either
+        os.kill(pid, signal.SIGKILL)
+    assert not left

@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+import gc
 import logging
 import sys
 from typing import Sequence
@@ -137,5 +138,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
 
+def console(argv: Sequence[str] | None = None) -> int:
+    """The ``ddmr`` command: :func:`main`; then, run as the program (``argv`` None), :func:`gc.freeze`, so that
+    the interpreter's exit does not walk every object the command loaded (numba's, Hydra's, matplotlib's) in its
+    last garbage collections: 0.15 s of a 1 s ``ddmr run`` (measured). Frozen objects are left to the process's
+    end, as the exit would leave them; files are closed by then (every output is written atomically and closed by
+    its writer)."""
+    code = main(argv)
+    if argv is None:
+        gc.freeze()
+    return code
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(console())

@@ -9,12 +9,13 @@ over the whole run, and the control signals have a full-resolution zoom into the
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of, save,
-                                   thin)
+from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, equal_aspect, figure, label_of,
+                                   log_scale, save, thin)
 from ddmr_cli.engine.results import d_hat, estimate_names
 
 #: the zoom of the control signals (s)
@@ -30,7 +31,7 @@ def _log(ax, y) -> None:
     """Log scale when ``y`` has positive values (a run that tracks exactly has none)."""
     y = np.asarray(y, float)
     if (y[np.isfinite(y)] > 0).any():
-        ax.set_yscale("log")
+        log_scale(ax)
 
 
 def _shade(ax, t: np.ndarray, zone: np.ndarray | None, settle: float) -> None:
@@ -70,20 +71,33 @@ def _zoom(t: np.ndarray, settle: float) -> tuple[float, float]:
     return mid - width / 2, mid + width / 2
 
 
-def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, seed: int, out_dir: Path,
-              settle_time: float = 3.0) -> list[Path]:
-    """Trajectory, errors and control signal of one run: three PNGs in ``out_dir``; ``settle_time`` is
-    ``metrics.settle_time`` (the start of the steady state the axes fit)."""
-    out_dir = Path(out_dir)
-    title = f"{label_of(controller)}, {scenario}, seed {seed}"
-    style = StyleBook([controller])[controller].kwargs()
-    color = style["color"]
-    t = series["t"]
-    zone = series.get("zone")
-    settle = float(settle_time)
-    note = f"hatched: start-up (t < {settle:g} s); grey bands: terrain zones"
-    paths = []
+@dataclass(frozen=True)
+class _Run:
+    """What the three figures of a run share."""
 
+    series: dict
+    controller: str
+    title: str
+    style: dict
+    settle: float
+    note: str
+
+
+def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, seed: int, out_dir: Path,
+              settle_time: float = 3.0, figures: tuple[str, ...] | None = None) -> list[Path]:
+    """Trajectory, errors and control signal of one run: three PNGs in ``out_dir`` (``figures``: some of
+    :data:`FIGURES` only); ``settle_time`` is ``metrics.settle_time`` (the start of the steady state the axes
+    fit)."""
+    settle = float(settle_time)
+    run = _Run(series, controller, f"{label_of(controller)}, {scenario}, seed {seed}",
+               StyleBook([controller])[controller].kwargs(), settle,
+               f"hatched: start-up (t < {settle:g} s); grey bands: terrain zones")
+    return [FIGURES[name](run, Path(out_dir)) for name in (figures or FIGURES)]
+
+
+def _trajectory(run: _Run, out_dir: Path) -> Path:
+    series, controller, title, style, settle = run.series, run.controller, run.title, run.style, run.settle
+    color, t = style["color"], series["t"]
     fig = figure(figsize=(9, 6.5))
     ax, ax2 = fig.subplots(2, 1, gridspec_kw={"height_ratios": [1.2, 1]})
     _plot(ax, series["x_ref"], series["y_ref"], label="reference", zorder=10, **REFERENCE_STYLE)
@@ -104,8 +118,12 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     for a in (ax, ax2):
         a.grid(alpha=0.3, which="both")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.09, top=0.94, hspace=0.4)
-    paths.append(save(fig, out_dir / "trajectory.png", tight=False))
+    return save(fig, out_dir / "trajectory.png", tight=False)
 
+
+def _errors(run: _Run, out_dir: Path) -> Path:
+    series, title, settle, note, color = run.series, run.title, run.settle, run.note, run.style["color"]
+    t, zone = series["t"], series.get("zone")
     fig = figure(figsize=(9, 8.5))
     axes = fig.subplots(4, 1, sharex=True)
     rows = (("deviation", 1000, "deviation [mm] (log)"), ("e_x", 1000, "e_x [mm]"), ("e_y", 1000, "e_y [mm]"),
@@ -126,8 +144,12 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
                       fontsize=9)
     axes[-1].set_xlabel("t [s]")
     fig.subplots_adjust(left=0.11, right=0.98, bottom=0.06, top=0.93, hspace=0.12)
-    paths.append(save(fig, out_dir / "errors.png", tight=False))
+    return save(fig, out_dir / "errors.png", tight=False)
 
+
+def _control(run: _Run, out_dir: Path) -> Path:
+    series, title, settle, note, color = run.series, run.title, run.settle, run.note, run.style["color"]
+    t, zone = series["t"], series.get("zone")
     fig = figure(figsize=(11, 7))
     axes = fig.subplots(3, 2, sharex="col", gridspec_kw={"width_ratios": [2.4, 1]})
     t0, t1 = _zoom(t, settle)
@@ -157,5 +179,8 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     axes[-1, 1].set_xlabel("t [s]")
     axes[0, 1].set_xlim(t0, t1)
     fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.95, hspace=0.12, wspace=0.15)
-    paths.append(save(fig, out_dir / "control.png", tight=False))
-    return paths
+    return save(fig, out_dir / "control.png", tight=False)
+
+
+#: the figures of a run, by name, in the order :func:`run_plots` draws them
+FIGURES = {"trajectory": _trajectory, "errors": _errors, "control": _control}

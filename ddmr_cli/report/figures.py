@@ -29,8 +29,8 @@ from ddmr_cli.report import signals as S
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten
 from ddmr_cli.report.tables import fmt
-from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, pyplot, save,
-                                      thin)
+from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, log_scale,
+                                   pyplot, save, thin)
 
 ZOOM_WIDTH = 0.3  # s
 SMC_FAMILY_KEYS = ("lambda",)  # a controller with a sliding surface reports lambda among its parameters
@@ -402,7 +402,7 @@ class ScenarioFigures:
         for job in self._ordered(self.jobs, "deviation"):
             s = self._s(job)
             self._trace(ax, job, "deviation")
-        ax.set_yscale("log")
+        log_scale(ax)
         lo = min(float(np.nanpercentile(self._s(j)["deviation"], 0.5)) for j in self.jobs)
         ax.set_ylim(bottom=max(lo / 2, 1e-7))
         ax.set(xlabel="t [s]", ylabel="deviation [m] (log scale)",
@@ -681,8 +681,8 @@ class ScenarioFigures:
         ax.axvline(cutoff, color="0.2", lw=1.0, ls="--")
         ax.text(cutoff, 0.98, f" {cutoff:g} Hz: hf_fraction cutoff", transform=ax.get_xaxis_transform(),
                 ha="left", va="top", fontsize=8)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        log_scale(ax, "x")
+        log_scale(ax)
         ax.set(xlabel="frequency [Hz]", ylabel="PSD of u [V²/Hz] (mean of both wheels)",
                title=self._title("Chattering in frequency: Welch spectrum of the applied voltage"))
         ax.grid(alpha=0.3, which="both")
@@ -739,7 +739,7 @@ class ScenarioFigures:
                         lw=1.2, label=jobs[0].display.label)
                 ax.fill_between(x, lo, hi, color=style.color, alpha=BAND_ALPHA, lw=0)
             if np.all([v > 0 for line in ax.get_lines() for v in line.get_ydata()]) and ax.get_lines():
-                ax.set_yscale("log")
+                log_scale(ax)
             ax.set_ylabel(ylabel + (" (steady state)" if metric.endswith("_ss") else ""))
             ax.grid(alpha=0.3, which="both")
         bottom = axes[-1, 0]
@@ -779,7 +779,7 @@ class ScenarioFigures:
                         idx = thin(s["deviation"], 1500)
                         ax.plot(s["t"][idx], 1000 * s["deviation"][idx], **{**self.style(job), "marker": None})
                         if (s["deviation"] > 0).any():
-                            ax.set_yscale("log")
+                            log_scale(ax)
                     ax.set_title(_short(_setting(job), 34), fontsize=8)
                     ax.grid(alpha=0.3, which="both")
                 for ax in list(axes.flat)[len(chunk):]:
@@ -814,7 +814,7 @@ class ScenarioFigures:
                 ax.scatter(i + rng.uniform(-0.15, 0.15, v.size), v, s=10, color=c, alpha=0.8, zorder=3)
         crowded = len(labels) > 4 or sum(map(len, labels)) > 60  # long labels (a sweep's settings) overlap
         ax.set_xticks(range(1, len(labels) + 1), labels, rotation=15 if crowded else 0, ha="right" if crowded else "center")
-        ax.set_yscale("log")
+        log_scale(ax)
         ax.set(ylabel="deviation MAE per seed [m] (log scale)",
                title=f"Spread of the deviation MAE over seeds — {self.scenario}")
         ax.grid(alpha=0.3, axis="y", which="both")
@@ -980,7 +980,7 @@ def fig_scenarios(data: ReportData, out_dir: Path, styles: StyleBook, plt) -> li
                     label=data.displays()[controller].label)
             ax.fill_between(x, lo, hi, color=style.color, alpha=BAND_ALPHA, lw=0)
         if ax.get_lines() and all((line.get_ydata() > 0).all() for line in ax.get_lines()):
-            ax.set_yscale("log")
+            log_scale(ax)
         ax.set_ylabel(ylabel + (" (steady state)" if metric.endswith("_ss") else ""))
         ax.grid(alpha=0.3, which="both")
     axes[-1, 0].set_xticks(range(len(scenarios)), [_short(s) for s in scenarios], rotation=20, ha="right")

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ddmr_cli.storage import io
-from ddmr_cli.plots.common import OKABE_ITO, pyplot, save
+from ddmr_cli.plots.common import OKABE_ITO, log_scale, pyplot, save
 from ddmr_cli.report.tables import md_table
 from ddmr_cli.study import analysis
 from ddmr_cli.study.claims import CLAIM_IDS, bounds, claims, rule
@@ -88,7 +88,7 @@ def oat_figure(rows: "pd.DataFrame", box, faithful: dict, path: Path) -> Path:
                 for style, (reading, values) in zip(("-", "--"), READINGS.items()):
                     ax.axvline(values[k], color=OKABE_ITO["orange"], lw=0.9, ls=style)
             if p.scale == "log" and not p.is_choice:
-                ax.set_xscale("log")
+                log_scale(ax, "x")
             if i == len(ids) - 1:
                 ax.set_xlabel(name, fontsize=7)
             if j == 0:
@@ -128,8 +128,8 @@ def map_figure(rows: "pd.DataFrame", x: str, y: str, path: Path) -> Path:
     for marker, (name, (lr, width)) in zip(("*", "P"), READINGS.items()):
         ax.plot(lr, width, marker=marker, ms=13, color=OKABE_ITO["orange"], mec="k", ls="none",
                 label=f"{name} reading (gamma={lr:g}, sigma={width:g})")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    log_scale(ax, "x")
+    log_scale(ax)
     ax.set_xlabel(f"{x} (gamma) [1/s^2]")
     ax.set_ylabel(f"{y} (sigma) [rad/s]")
     share = float(np.mean((z >= 30) & (z <= 50))) if z.size else math.nan
