@@ -387,6 +387,7 @@ def test_one_composition_per_process_refuses_what_hydra_refuses():
     (["launcher=local"], 8, 6_000_000, False),                     # a launcher named on the command line is kept
     (["launcher=submitit_local"], 2, 1_000, False),
     (["cluster.cpus=2"], 2, 1_000, False),                         # the launcher's settings named: kept
+    (["+experiment=sensitivity_oat"], 2, 1_000, False),            # a study stage's chunks: parallel processes
 ])
 def test_small_local_sweeps_run_in_this_process(overrides, n_jobs, work, expected):
     from hydra.core.override_parser.overrides_parser import OverridesParser

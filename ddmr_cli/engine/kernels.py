@@ -243,8 +243,21 @@ def compiled_external_step(law_module: str, control_args: tuple, account_args: t
                           compiling))
 
 
+#: the attribute of a generated copy's module that holds the functions :func:`_checked` verified in this process
+_VERIFIED = "_ddmr_verified"
+
+
 def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Callable[[], None] | None) -> list:
-    """The copy's functions ``calls`` names, each compiled (or loaded) for exactly its call's signature."""
+    """The copy's functions ``calls`` names, each compiled (or loaded) for exactly its call's signature.
+
+    A copy is checked once per process: its name fixes the complete signature of every call it serves
+    (:func:`stepper_for`), so the functions verified first are recorded on the copy's module and returned to every
+    later call (a study simulates thousands of samples a process; the check lists the cache directory and
+    re-types every argument, about 2 ms a call)."""
+    names = tuple(name for name, _ in calls)
+    verified = getattr(module, _VERIFIED, {})
+    if names in verified:
+        return verified[names]
     functions = [getattr(module, name) for name, _ in calls]
     if not jit_enabled():
         return functions
@@ -265,6 +278,7 @@ def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Call
             raise  # nothing was loaded: a genuine compile error
         problem = f"does not load ({type(exc).__name__}: {exc})"
     if problem is None:
+        setattr(module, _VERIFIED, {**verified, names: functions})
         return functions
     print(f"ddmr: warning: the cached step loop {path} (entries {', '.join(p.name for p in entries)}) {problem}; "
           f"deleting it and recompiling", file=sys.stderr)
@@ -276,6 +290,7 @@ def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Call
         if set(function.overloads) != {signature}:
             raise RuntimeError(f"{path}: the recompiled step loop does not match its call (delete {cache_dir()} "
                                f"and report this)")
+    setattr(module, _VERIFIED, {**verified, names: functions})
     return functions
 
 

@@ -1,15 +1,18 @@
 """A run's figures drawn in forked processes that start before the simulation (``ddmr run``'s plots).
 
 matplotlib holds the GIL while it imports (about 0.3 s) and draws (about 0.55 s for a run's three figures), so
-a thread cannot overlap either with the job. :class:`PlotProcesses` forks its processes before the job
-simulates: each imports matplotlib and draws a throw-away figure (loading the fonts) while the job loads its
-compiled step loop and simulates, then waits for the series, draws its share of :data:`~.run.FIGURES` into the
-job's directory and reports the paths. Measured on the 2-core machine, ``ddmr run`` with its plots took 1.96-2.09 s
-drawing in the job's process (the figures began 0.86 s in and took 0.86 s).
+a thread cannot overlap either with the job. :class:`PlotProcesses` forks one drawing process before the job
+simulates: it imports matplotlib and draws a throw-away figure (loading the fonts) while the job loads its
+compiled step loop and simulates, then forks a warm copy of itself per further share of :data:`~.run.FIGURES`;
+each waits for the series, draws its share into the job's directory and reports the paths. Measured on the
+2-core machine, ``ddmr run`` with its plots: 1.96-2.09 s drawing in the job's process (the figures began 0.86 s
+in and took 0.86 s), 1.33-1.38 s with these processes (and the console script's exit without its last garbage
+collections, :func:`ddmr_cli.cli.main.console`).
 
-Processes are forked only where that is safe and cheap (Linux: ``os.fork`` after numpy and the job's modules are
-imported, with no threads of ours running yet); elsewhere, or when a process fails in any way, its figures are
-drawn in the job's own process, the same files.
+Processes are forked only on Linux, where a fork copies the forking thread alone and is cheap after the job's
+imports; the drawing processes take no lock of the job's other threads (they import, draw and write their own
+files; CPython re-initialises the import and logging locks at a fork). Elsewhere, or when a process fails in any
+way, its figures are drawn in the job's own process: the same files.
 """
 
 from __future__ import annotations
