@@ -258,3 +258,16 @@ def test_the_compiled_draw_is_numpys_stream():
         np.testing.assert_allclose(a, b, rtol=1e-15, atol=0)  # the same numbers (to the last bit on one machine)
         assert ours.bit_generator.state == numpys.bit_generator.state
         assert abs(a).max() > 4.0  # the draw reached the ziggurat's tail
+
+
+def test_noise_streams_are_numpys_on_both_sides_of_the_compiled_draw():
+    """Chunks shorter than COMPILED_DRAW_MIN_STEPS are drawn by numpy, longer ones compiled: a run's stream is
+    numpy's own either way, in any mix of chunk sizes."""
+    from ddmr_cli.model.noise import COMPILED_DRAW_MIN_STEPS, NoiseStreams
+
+    sizes = [7, COMPILED_DRAW_MIN_STEPS, 3, 2 * COMPILED_DRAW_MIN_STEPS + 1, COMPILED_DRAW_MIN_STEPS - 1]
+    streams = NoiseStreams([3, 4])
+    drawn = np.concatenate([streams.next_chunk(n) for n in sizes], axis=1)
+    for run, seed in enumerate((3, 4)):
+        expected = np.random.default_rng(seed).standard_normal((sum(sizes), NoiseStreams.channels))
+        np.testing.assert_allclose(drawn[run], expected, rtol=1e-15, atol=0)
