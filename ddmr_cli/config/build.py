@@ -135,10 +135,10 @@ def build_simulation(cfg: DictConfig) -> Simulation:
     )
 
 
-def build_plant(node) -> Any:
-    """The plant factory of ``plant`` (:attr:`~ddmr_cli.engine.simulation.Simulation.plant`): None for the wheel
-    plant (no node, or ``plant.name: wheel``), else ``ddmr_cli.plant.<name>.factory(node)``. ConfigError on
-    ``plant.name`` for a name without such a module."""
+def plant_module(node) -> Any:
+    """The module of the plant ``node`` names (``ddmr_cli.plant.<plant.name>``, with its ``factory`` and optional
+    ``check``), or None for the wheel plant (no node, or ``plant.name: wheel``). ConfigError on ``plant.name`` for
+    a name without such a module."""
     import importlib
 
     from ddmr_cli.plant.wheel import NAME as WHEEL
@@ -148,11 +148,21 @@ def build_plant(node) -> Any:
         return None
     try:
         module = importlib.import_module(f"ddmr_cli.plant.{name}")
-        factory = module.factory
-    except (ImportError, AttributeError):
+    except ImportError:
+        module = None
+    if not hasattr(module, "factory"):
         raise ConfigError("plant.name", name, "must name a plant of ddmr_cli.plant with a factory (the "
-                          "conf/plant options: wheel, wheel_python, mujoco)") from None
-    return factory(OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node))
+                          "conf/plant options: wheel, wheel_python, mujoco)")
+    return module
+
+
+def build_plant(node) -> Any:
+    """The plant factory of ``plant`` (:attr:`~ddmr_cli.engine.simulation.Simulation.plant`): None for the wheel
+    plant, else its module's ``factory(node)`` (:func:`plant_module`)."""
+    module = plant_module(node)
+    if module is None:
+        return None
+    return module.factory(OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node))
 
 
 def seeds_of(cfg: DictConfig) -> list[int]:

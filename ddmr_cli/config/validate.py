@@ -27,7 +27,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.checks import integer, positive
 from ddmr_cli.config import budget
-from ddmr_cli.config.build import USER_TARGETS, build_simulation, check_targets
+from ddmr_cli.config.build import USER_TARGETS, build_simulation, check_targets, plant_module
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.config import display
 
@@ -283,15 +283,8 @@ def check_plant(cfg: DictConfig, sim) -> None:
     plant's module defines it (``plant=mujoco``: the physics extra installed, the heightfield fine enough for the
     wheel, the zones and the reference on the field, a timestep MuJoCo holds stable; ``plant=wheel_python``: explicit
     Euler); nothing for the wheel plant."""
-    import importlib
-
-    from ddmr_cli.plant.wheel import NAME as WHEEL
-
     plant = cfg.get("plant")
-    name = WHEEL if plant is None else str(plant.get("name", WHEEL))
-    if name == WHEEL:
-        return
-    check = getattr(importlib.import_module(f"ddmr_cli.plant.{name}"), "check", None)
+    check = getattr(plant_module(plant), "check", None)
     if check is not None:
         check(OmegaConf.to_container(plant, resolve=True), sim)
 
