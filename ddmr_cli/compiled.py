@@ -65,8 +65,17 @@ def inlined_law(fn):
 
 
 def cached_law(fn):
-    """As :func:`law`, cached on disk: for the generated copies of the step loop only (see the module docstring)."""
-    return njit(cache=True, nogil=True)(fn) if AVAILABLE else fn
+    """As :func:`law`, cached on disk: for the generated copies of the step loop (see the module docstring) and
+    the self-contained laws Python calls directly (the noise draw), which would otherwise compile in every process.
+    Where numba finds no place for the cache (the package imported from a zip), compiled in each process."""
+    if not AVAILABLE:
+        return fn
+    try:
+        return njit(cache=True, nogil=True)(fn)
+    except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available for file ..."
+        if "no locator" not in str(exc):
+            raise
+        return njit(nogil=True)(fn)
 
 
 def plain(fn):

@@ -136,11 +136,14 @@ def test_two_sweeps_started_at_once_into_one_dir(tmp_path):
 
 def test_ctrl_c_is_one_line_exit_130_and_the_rerun_resumes(tmp_path, smoke_sweep_dir):
     sweep_dir = tmp_path / "sweep"
-    args = ["run", "-m", "+experiment=smoke", f"hydra.sweep.dir={sweep_dir}"]
+    # one worker (a launcher setting: the same jobs, dirs and numbers): the 24 jobs take seconds after the first
+    # two, where two workers have finished them all before a Ctrl-C sent then arrived (seen once in CI)
+    args = ["run", "-m", "+experiment=smoke", f"hydra.sweep.dir={sweep_dir}", "hydra.launcher.n_jobs=1"]
     proc = _popen(args, cwd=tmp_path)
     deadline = time.time() + 120
     while time.time() < deadline and len(list(sweep_dir.glob("*/summary.json"))) < 2:
         time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before the Ctrl-C"
     os.killpg(proc.pid, signal.SIGINT)  # what the terminal sends on Ctrl-C
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err[-2000:]
