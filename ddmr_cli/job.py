@@ -13,7 +13,6 @@ single run prints one line (``ddmr: error: <path>: <reason>`` for a file-system 
 from __future__ import annotations
 
 import contextlib
-
 import logging
 import platform
 import sys
