@@ -162,3 +162,19 @@ def test_the_grid_sampler_and_failed_trials(tmp_path):
     assert states.get("boom", {"FAIL"}) == {"FAIL"} and states.get("a", {"COMPLETE"}) == {"COMPLETE"}
     stop = _toy(failing, "c=boom", "hydra.sweeper.n_trials=2")
     assert stop.returncode != 0 and "boom trial" in stop.stderr
+
+
+def test_trials_compose_once_and_run_alike_through_the_joblib_launcher(tmp_path):
+    """The trials differ in values only: each batch is validated (composed) before it is launched, so the one
+    composition they share is made in the sweeping process and travels to the launcher's workers (a worker
+    composing it itself could not pickle the launcher's structured config, a class its plugin scan re-made).
+    The seeded search is the same through the joblib launcher as through the basic one."""
+    basic = tmp_path / "basic"
+    pooled = tmp_path / "joblib"
+    basic.mkdir(), pooled.mkdir()
+    assert _toy(basic).returncode == 0
+    proc = _toy(pooled, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    ours, theirs = _load(pooled).trials, _load(basic).trials
+    assert [t.params for t in ours] == [t.params for t in theirs]
+    assert [t.value for t in ours] == pytest.approx([t.value for t in theirs], rel=1e-12)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Mapping
 
 from hydra.errors import InstantiationException
 from omegaconf import DictConfig, OmegaConf
@@ -101,38 +101,60 @@ def controller_name(cfg: DictConfig) -> str:
     return str(cfg.get("name") or str(cfg._target_).rsplit(".", 1)[-1].lower())
 
 
-def build_simulation(cfg: DictConfig) -> Simulation:
-    """The :class:`~ddmr_cli.engine.simulation.Simulation` a composed (and validated) config describes."""
+def _instantiated(node: DictConfig, path: str):
+    """:func:`instantiate_checked`, a constructor's ConfigError unwrapped from Hydra's InstantiationException."""
     try:
-        controller = instantiate_checked(cfg.controller, "controller")
-        trajectory = instantiate_checked(cfg.trajectory, "trajectory")
-    except InstantiationException as exc:  # a constructor's ConfigError, wrapped by Hydra
+        return instantiate_checked(node, path)
+    except InstantiationException as exc:
         cause = exc.__cause__ or exc.__context__
         if isinstance(cause, ConfigError):
             raise cause from None
         raise
-    sim_cfg = cfg.simulation
-    wheel = sim_cfg.initial_wheel_speeds
-    return Simulation(
-        controller=controller,
-        robot=build_robot(cfg.robot),
-        terrain=build_terrain(cfg.terrain),
-        scenario=build_scenario(cfg.scenario),
-        trajectory=trajectory,
-        outer_loop=Kanayama(**OmegaConf.to_container(cfg.outer_loop, resolve=True)),
-        dt=float(sim_cfg.dt),
-        duration=float(sim_cfg.duration),
-        integrator=str(sim_cfg.integrator),
-        initial_pose=tuple(float(v) for v in sim_cfg.initial_pose),
-        initial_wheel_speeds=wheel if isinstance(wheel, str) else tuple(float(v) for v in wheel),
-        divergence_bound=float(sim_cfg.divergence_bound),
-        settle_time=float(cfg.metrics.settle_time),
-        zone_settle_time=float(cfg.metrics.zone_settle_time),
-        sensor=Sensor(**OmegaConf.to_container(cfg.sensor, resolve=True)),
-        actuator=Actuator(**OmegaConf.to_container(cfg.actuator, resolve=True)),
-        control_rate=None if cfg.control.rate is None else float(cfg.control.rate),
-        plant=build_plant(cfg.get("plant")),
-    )
+
+
+def _simulation_values(node: DictConfig) -> dict[str, Any]:
+    wheel = node.initial_wheel_speeds
+    return {
+        "dt": float(node.dt),
+        "duration": float(node.duration),
+        "integrator": str(node.integrator),
+        "initial_pose": tuple(float(v) for v in node.initial_pose),
+        "initial_wheel_speeds": wheel if isinstance(wheel, str) else tuple(float(v) for v in wheel),
+        "divergence_bound": float(node.divergence_bound),
+    }
+
+
+#: config section -> the :class:`~ddmr_cli.engine.simulation.Simulation` fields built from it (the plant's section:
+#: :func:`build_plant`), in the order :func:`build_simulation` builds them (the first refusal is the one reported)
+SECTION_BUILDERS = MappingProxyType({
+    "controller": lambda node: {"controller": _instantiated(node, "controller")},
+    "trajectory": lambda node: {"trajectory": _instantiated(node, "trajectory")},
+    "robot": lambda node: {"robot": build_robot(node)},
+    "terrain": lambda node: {"terrain": build_terrain(node)},
+    "scenario": lambda node: {"scenario": build_scenario(node)},
+    "outer_loop": lambda node: {"outer_loop": Kanayama(**OmegaConf.to_container(node, resolve=True))},
+    "simulation": _simulation_values,
+    "metrics": lambda node: {"settle_time": float(node.settle_time), "zone_settle_time": float(node.zone_settle_time)},
+    "sensor": lambda node: {"sensor": Sensor(**OmegaConf.to_container(node, resolve=True))},
+    "actuator": lambda node: {"actuator": Actuator(**OmegaConf.to_container(node, resolve=True))},
+    "control": lambda node: {"control_rate": None if node.rate is None else float(node.rate)},
+})
+
+
+def build_parts(sections: Mapping[str, DictConfig]) -> dict[str, Any]:
+    """The Simulation fields built from the config sections ``sections`` holds (section name -> its node, names
+    of :data:`SECTION_BUILDERS`), in :data:`SECTION_BUILDERS`' order."""
+    fields: dict[str, Any] = {}
+    for name, build in SECTION_BUILDERS.items():
+        if name in sections:
+            fields.update(build(sections[name]))
+    return fields
+
+
+def build_simulation(cfg: DictConfig) -> Simulation:
+    """The :class:`~ddmr_cli.engine.simulation.Simulation` a composed (and validated) config describes."""
+    return Simulation(**build_parts({name: cfg[name] for name in SECTION_BUILDERS}),
+                      plant=build_plant(cfg.get("plant")))
 
 
 def plant_module(node) -> Any:

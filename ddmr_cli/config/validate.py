@@ -312,12 +312,19 @@ def validate_config(cfg: DictConfig):
     validate_cluster(cfg.get("cluster"))
     kept = validate_run(cfg.run)
     sim = build_simulation(cfg)
+    check_simulation(cfg, sim, kept)
+    return sim
+
+
+def check_simulation(cfg: DictConfig, sim, kept: list[int] | None = None) -> None:
+    """The checks of a built :class:`~ddmr_cli.engine.simulation.Simulation` of ``cfg`` (the run of
+    :func:`validate_config` after the build): the step against every part's stability bound, the derived numbers,
+    the plant's own checks and the job's memory budget (``kept``: the kept seeds, read from ``cfg.run`` if None)."""
     sim.validate()
     check_derived(sim)
     check_plant(cfg, sim)
     budget.check(job_estimate(cfg, sim, kept), cfg.run.get("max_memory_gb"),
                  cluster_mem_gb=(cfg.get("cluster") or {}).get("mem_gb"))
-    return sim
 
 
 def steady_state_warning(sim) -> str | None:
@@ -338,6 +345,6 @@ def job_estimate(cfg: DictConfig, sim, kept: list[int] | None = None) -> budget.
     return budget.estimate(sim, int(cfg.run.n_runs), len(kept))
 
 
-__all__ = ["validate_config", "validate_run", "validate_cluster", "kept_seeds", "check_additions", "unknown_key",
+__all__ = ["validate_config", "check_simulation", "validate_run", "validate_cluster", "kept_seeds", "check_additions", "unknown_key",
            "check_target_classes", "check_derived", "check_plant", "message", "job_estimate", "steady_state_warning",
            "DerivedError", "KEEP_FORMS"]

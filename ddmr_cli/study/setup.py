@@ -4,13 +4,19 @@ per controller and scenario configs, the faithful reading and the stage's design
 from __future__ import annotations
 
 import copy
+import hashlib
+import json
+from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from ddmr_cli.study.design import Design, build
 from ddmr_cli.study.space import Box
+
+if TYPE_CHECKING:
+    from ddmr_cli.config.variants import Variants
 
 #: one row per sample of a study job (in its job dir)
 STUDY_ROWS = "study_rows.csv"
@@ -37,6 +43,50 @@ def study_configs(cfg: DictConfig) -> dict[tuple[str, str], DictConfig]:
     return out
 
 
+#: study settings a job's models do not depend on: its share of the design, a calibration trial's reading
+JOB_SETTINGS = ("chunk", "reading")
+
+
+class _ByDigest:
+    """A config carried into :func:`_built` (a memo), hashed and compared by its digest."""
+
+    __slots__ = ("cfg", "digest")
+
+    def __init__(self, cfg: DictConfig, digest: str) -> None:
+        self.cfg, self.digest = cfg, digest
+
+    def __hash__(self) -> int:
+        return hash(self.digest)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _ByDigest) and other.digest == self.digest
+
+
+@lru_cache(maxsize=2)
+def _built(keyed: _ByDigest) -> tuple[Box, dict[tuple[str, str], Variants], dict[str, Any]]:
+    from ddmr_cli.config.variants import Variants
+
+    box = Box.from_config(keyed.cfg.study)
+    configs = study_configs(keyed.cfg)
+    variants = {key: Variants(one) for key, one in configs.items()}
+    return box, variants, box.faithful_across(list(configs.values()))
+
+
+def study_models(cfg: DictConfig) -> tuple[Box, dict[tuple[str, str], Variants], dict[str, Any]]:
+    """What a study job simulates its samples on: the box, each (controller, scenario) config validated and built
+    once (:class:`~ddmr_cli.config.variants.Variants`) and the faithful reading.
+
+    Kept per process for the last two study configs that differ only in :data:`JOB_SETTINGS` (and the ``hydra``
+    node): a launcher's worker runs many jobs of one stage (the calibration's trials: one sample each), and
+    building the 8 configs took about a third of such a job. Built anew (and raising) for a config refused."""
+    container = OmegaConf.to_container(cfg, resolve=True)
+    container.pop("hydra", None)
+    for key in JOB_SETTINGS:
+        container["study"].pop(key, None)
+    digest = hashlib.sha256(json.dumps(container, sort_keys=True, default=str).encode()).hexdigest()
+    return _built(_ByDigest(cfg, digest))
+
+
 def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
                 ) -> tuple[Box, dict[tuple[str, str], DictConfig], dict[str, Any], Design]:
     """The box, the per controller and scenario configs, the faithful reading (each parameter read from the first
@@ -48,4 +98,4 @@ def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
 
 
 
-__all__ = ["STUDY_ROWS", "STUDY_CSV", "study_configs", "study_setup"]
+__all__ = ["STUDY_ROWS", "STUDY_CSV", "JOB_SETTINGS", "study_configs", "study_models", "study_setup"]

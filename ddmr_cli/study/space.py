@@ -218,11 +218,11 @@ class Box:
 
     def apply(self, sample: Mapping[str, Any], cfg: DictConfig) -> DictConfig:
         """A copy of ``cfg`` with the sample's values set (``cfg`` unchanged)."""
-        out = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False)) if not isinstance(cfg, DictConfig) \
-            else cfg.copy()
-        for key, value in self.key_values(sample, cfg).items():
-            OmegaConf.update(out, key, value, merge=False)
-        return out
+        from ddmr_cli.config.variants import with_values
+
+        if not isinstance(cfg, DictConfig):
+            cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
+        return with_values(cfg, self.key_values(sample, cfg))
 
     def sample_of_overrides(self, overrides: Sequence[str], cfg: DictConfig, names: Sequence[str]) -> dict:
         """The values of ``names`` that ``overrides`` (from :meth:`overrides`) describe, read back from ``cfg``

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from omegaconf import DictConfig
 
@@ -28,22 +28,26 @@ from ddmr_cli.storage import io, jobdir
 from ddmr_cli.storage.sweep import read_state
 from ddmr_cli.study import claims as claim_stats
 from ddmr_cli.study import search
-from ddmr_cli.study.design import chunk_of
-from ddmr_cli.study.setup import STUDY_CSV, STUDY_ROWS, study_setup
+from ddmr_cli.study.design import build, chunk_of
+from ddmr_cli.study.setup import STUDY_CSV, STUDY_ROWS, study_models
 from ddmr_cli.study.space import Box
+
+if TYPE_CHECKING:
+    from ddmr_cli.config.variants import Variants
 
 log = logging.getLogger("ddmr")
 
-def simulate_sample(box: Box, configs: dict[tuple[str, str], DictConfig], sample: dict, seeds: list[int],
+def simulate_sample(box: Box, configs: dict[tuple[str, str], Variants], sample: dict, seeds: list[int],
                     threads: int) -> tuple[dict, int, int]:
     """Every controller and scenario at one reading: per (controller, scenario) the per-seed metrics
-    (:data:`~ddmr_cli.study.claims.METRICS`), and the counts of runs and diverged runs."""
-    from ddmr_cli.config import validate_config
+    (:data:`~ddmr_cli.study.claims.METRICS`), and the counts of runs and diverged runs. ``configs``: each
+    (controller, scenario) config built once (:class:`~ddmr_cli.config.variants.Variants`), the sample's values
+    set on it (:meth:`~ddmr_cli.study.space.Box.key_values`)."""
     from ddmr_cli.engine.simulation import simulate
 
     runs, n, diverged = {}, 0, 0
     for key, base in configs.items():
-        sim = validate_config(box.apply(sample, base))
+        sim = base.simulation_with(box.key_values(sample, base.cfg))
         result = simulate(sim, seeds, bands=False, threads=threads)
         runs[key] = {m: result.metric(m) for m in claim_stats.METRICS}
         n += len(seeds)
@@ -81,16 +85,17 @@ def execute_study(cfg: DictConfig, place, digest: str | None = None, sim=None) -
 
     started = time.perf_counter()
     out, overrides = place.out, list(place.overrides)
-    box, configs, _, design = study_setup(cfg, out.parent)
+    box, variants, faithful = study_models(cfg)
+    design = build(cfg.study, box, faithful, out.parent)
     indices = chunk_of(len(design.samples), int(cfg.study.chunk), int(cfg.study.chunks))
     seeds = seeds_of(cfg)
     threads = place.threads(cfg)
-    scenarios = list(dict.fromkeys(s for _, s in configs))
+    scenarios = list(dict.fromkeys(s for _, s in variants))
     rows, n_runs, n_diverged, failed = [], 0, 0, 0
     for count, i in enumerate(indices):
         sample = design.samples[i]
         try:
-            runs, n, d = simulate_sample(box, configs, sample, seeds, threads)
+            runs, n, d = simulate_sample(box, variants, sample, seeds, threads)
             row = {**sample_row(i, design.labels[i], sample, runs, scenarios), "status": "ok", "error": ""}
             n_runs, n_diverged = n_runs + n, n_diverged + d
             row.update({"runs": n, "diverged": d})

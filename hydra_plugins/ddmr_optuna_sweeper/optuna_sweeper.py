@@ -66,6 +66,15 @@ class DdmrOptunaSweeper(Sweeper):
         self.launcher = None
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
+        """The launcher, given Hydra's config loader wrapped by ddmr's
+        :class:`~ddmr_cli.config.compose_once.SweepConfigLoader`: the trials differ only in values, so each is a
+        copy of one composition with its values applied (the same config as Hydra's, composed once a sweep, in
+        this process: :meth:`sweep` validates each batch before launching it)."""
+        from ddmr_cli.config.compose_once import SweepConfigLoader
+
+        hydra_context = HydraContext(config_loader=SweepConfigLoader(hydra_context.config_loader),
+                                     callbacks=hydra_context.callbacks)
+        self.hydra_context = hydra_context
         self.config = config
         self.launcher = Plugins.instance().instantiate_launcher(config=config, hydra_context=hydra_context,
                                                                 task_function=task_function)
@@ -107,6 +116,9 @@ class DdmrOptunaSweeper(Sweeper):
         while to_go > 0:
             trials = [study.ask() for _ in range(min(to_go, self.n_jobs))]
             overrides = [self._trial_overrides(t, dims, fixed) for t in trials]
+            # as Hydra's sweepers: every trial's config composes before any runs (a bad override stops the sweep
+            # here); the composition the trials share is then made here, once, and travels to the launcher's workers
+            self.validate_batch_is_legal(overrides)
             returns = self.launcher.launch(overrides, initial_job_idx=trials[0].number)
             failures = 0
             for trial, ret in zip(trials, returns):

@@ -1,0 +1,109 @@
+"""One validated config, its built simulation, and the simulation of that config with some values changed.
+
+A sensitivity study (docs/model.md §11) simulates thousands of readings of the same few configs (a controller
+in a scenario, 8 of them by default). Setting a reading on a copy of the whole config, then validating and
+building it anew, took about 7.7 ms a config, most of a sample's time (issue 28). :class:`Variants` validates and
+builds its config once. For a reading it copies only the sections the changed keys belong to, sets the values
+there (with the config's types and struct checks), rebuilds the model parts built from those sections
+(:data:`~ddmr_cli.config.build.SECTION_BUILDERS`) and runs the checks of a built simulation
+(:func:`~ddmr_cli.config.validate.check_simulation`). The result is the simulation the full path would give,
+with the same refusals (tests/test_variants.py compares both for every parameter of the default study).
+
+The full path (the whole config copied, validated and built: :func:`with_values` then
+:func:`~ddmr_cli.config.validate.validate_config`) is taken for a key outside those sections (``run.*``,
+``plant.*``), a key naming a class (``_target_``) or a controller's ``display``, and for a config whose model
+sections hold an interpolation (a changed value could flow into another section).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from typing import Any, Mapping
+
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from ddmr_cli.config.build import SECTION_BUILDERS, build_parts
+from ddmr_cli.config.display import DISPLAY
+from ddmr_cli.config.validate import check_simulation, validate_config
+
+
+#: the sections :func:`~ddmr_cli.config.validate.check_simulation` reads besides the model's (kept as they are)
+CHECKED = ("run", "cluster", "plant")
+
+
+def with_values(cfg: DictConfig, values: Mapping[str, Any]) -> DictConfig:
+    """A copy of ``cfg`` with ``values`` (dotted key -> value) set, in their order (``cfg`` unchanged)."""
+    out = cfg.copy()
+    for key, value in values.items():
+        OmegaConf.update(out, key, value, merge=False)
+    return out
+
+
+def _interpolated(node: Any) -> bool:
+    """True when a node's unresolved values hold an interpolation (``${...}``) anywhere."""
+    container = OmegaConf.to_container(node, resolve=False) if isinstance(node, DictConfig) else node
+    if isinstance(container, dict):
+        return any(_interpolated(v) for v in container.values())
+    if isinstance(container, list):
+        return any(_interpolated(v) for v in container)
+    return isinstance(container, str) and "${" in container
+
+
+def _same(a: Any, b: Any) -> bool:
+    """``a`` and ``b`` are equal and of the same types, element by element in lists and tuples."""
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return type(a) is type(b) and a == b
+
+
+class Variants:
+    """A config validated and built once (:attr:`simulation`), and :meth:`simulation_with` changed values.
+
+    Parameters
+    ----------
+    cfg : DictConfig
+        A composed config (as :func:`~ddmr_cli.config.validate.validate_config` takes it; not changed).
+    """
+
+    def __init__(self, cfg: DictConfig) -> None:
+        self.cfg = cfg
+        self.simulation = validate_config(cfg)
+        #: False when a value the simulation is built or checked from is an interpolation: a changed value could
+        #: flow into another section, and every change takes the full path
+        self.in_place = not any(_interpolated(cfg.get(name)) for name in (*SECTION_BUILDERS, *CHECKED))
+
+    def _in_place(self, key: str) -> bool:
+        section, _, rest = key.partition(".")
+        return (self.in_place and section in SECTION_BUILDERS and bool(rest) and "_target_" not in key.split(".")
+                and not (section == "controller" and rest.split(".")[0] == DISPLAY))
+
+    def _holds(self, key: str, value: Any) -> bool:
+        """True when the config holds ``value`` at ``key`` already, of the same type (setting it would change
+        nothing: an exact comparison that only skips a no-op)."""
+        current = OmegaConf.select(self.cfg, key, default=None, throw_on_missing=False)
+        if isinstance(current, (DictConfig, ListConfig)):
+            current = OmegaConf.to_container(current, resolve=True)
+        return _same(value, current)
+
+    def simulation_with(self, values: Mapping[str, Any]):
+        """The :class:`~ddmr_cli.engine.simulation.Simulation` of the config with ``values`` (dotted key -> value)
+        set, checked as :func:`~ddmr_cli.config.validate.validate_config` checks it (ConfigError naming the key
+        of a refused value). No values: :attr:`simulation` itself."""
+        values = {key: value for key, value in values.items() if not self._holds(key, value)}
+        if not all(self._in_place(key) for key in values):
+            return validate_config(with_values(self.cfg, values))
+        sections: dict[str, DictConfig] = {}
+        for key, value in values.items():
+            name, _, rest = key.partition(".")
+            if name not in sections:
+                sections[name] = copy.deepcopy(self.cfg[name])  # keeps its schema's types and struct flag
+            OmegaConf.update(sections[name], rest, value, merge=False)
+        if not sections:
+            return self.simulation
+        sim = dataclasses.replace(self.simulation, **build_parts(sections))
+        check_simulation(self.cfg, sim)
+        return sim
+
+
+__all__ = ["Variants", "with_values"]
