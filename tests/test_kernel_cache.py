@@ -225,6 +225,42 @@ def test_the_identity_spells_nested_shapes_and_tuple_classes():
     assert "(3, 2)" in call_identity((one,)) and "(6, 2)" in call_identity((other,))
 
 
+@pytest.mark.skipif(not AVAILABLE, reason="numba is not installed")
+def test_the_identity_kept_by_fingerprint_is_numbas_typing():
+    """call_identity keeps each identity by the arguments' fingerprint: values of one fingerprint have one numba
+    type, and the kept identity is the one typing the arguments gives, for every kind of argument the loops take."""
+    import itertools
+    from collections import namedtuple
+
+    import numpy as np
+
+    from ddmr_cli.engine import kernels
+
+    Pair = namedtuple("Pair", "a b")
+    base = np.zeros((3, 4))
+    readonly = np.zeros(5)
+    readonly.setflags(write=False)
+    record = np.dtype([("x", "f8"), ("w", "f8", (2,))])
+    values = [
+        base, base.T, base[:, ::2], base[0], readonly, np.zeros(5), np.zeros(5, dtype=np.int64),
+        np.zeros(5, dtype=np.float32), np.zeros(5, dtype=bool), np.zeros(0), np.zeros(3, dtype=record),
+        np.zeros(3, dtype=np.dtype([("x", "f8"), ("w", "f8", (3,))])), np.zeros(3, dtype=np.dtype(
+            [("x", "f8"), ("w", "f8", (2,))], align=True)), np.zeros((1, 1)), np.zeros((2, 1), order="F"),
+        0, 7, 2 ** 63, -(2 ** 63), True, 1.5, np.float64(1.5), np.int32(3), np.float32(2.0),
+        (1.0, 2.0), (1.0, 2), Pair(1.0, 2.0), Pair(np.zeros(2), 1.0), (np.zeros(2), (1, 2.0)),
+    ]
+    by_fingerprint = {}
+    for value in values:
+        args = (value,)
+        typed = kernels._typed_identity(args)
+        assert kernels.call_identity(args) == typed and kernels.call_identity(args) == typed  # kept, then reused
+        by_fingerprint.setdefault(kernels._fingerprint(args), set()).add(typed)
+    assert all(len(types) == 1 for types in by_fingerprint.values()), by_fingerprint
+    for a, b in itertools.combinations(values[:6], 2):  # arrays of other layouts or flags: other identities
+        if kernels._typed_identity((a,)) != kernels._typed_identity((b,)):
+            assert kernels._fingerprint((a,)) != kernels._fingerprint((b,))
+
+
 def test_the_cache_key_covers_what_the_loop_inlines_and_only_that():
     """Editing one controller's module changes that controller's key alone; editing a law every loop inlines (the
     stepper, the plant's robot.py) changes every key; the RBF network's module is SMC's, not PID's (issue 27)."""

@@ -78,6 +78,7 @@ def test_every_parameter_rebuilt_in_place_is_the_full_paths_simulation(key, box,
     seen = 0
     for name, value in _readings(box):
         values = box.key_values({name: value}, base.cfg)
+        assert box.key_values({name: value}, base.cfg, base.value) == values  # the job's cached lookup
         if not values:  # a key this controller does not have (the NN's of PID)
             continue
         full = validate_config(box.apply({name: value}, base.cfg))

@@ -71,6 +71,7 @@ class Variants:
         self.simulation = validate_config(cfg)
         #: False when a value the simulation is built or checked from is an interpolation: a changed value could
         #: flow into another section, and every change takes the full path
+        self._values: dict[str, Any] = {}
         self.in_place = not any(_interpolated(cfg.get(name)) for name in (*SECTION_BUILDERS, *CHECKED))
 
     def _in_place(self, key: str) -> bool:
@@ -78,13 +79,19 @@ class Variants:
         return (self.in_place and section in SECTION_BUILDERS and bool(rest) and "_target_" not in key.split(".")
                 and not (section == "controller" and rest.split(".")[0] == DISPLAY))
 
+    def value(self, key: str) -> Any:
+        """The config's resolved value at ``key`` (lists and dicts plain), None where it has none; each key
+        looked up once (a study reads the same keys for every sample)."""
+        if key not in self._values:
+            found = OmegaConf.select(self.cfg, key, default=None, throw_on_missing=False)
+            self._values[key] = OmegaConf.to_container(found, resolve=True) \
+                if isinstance(found, (DictConfig, ListConfig)) else found
+        return self._values[key]
+
     def _holds(self, key: str, value: Any) -> bool:
         """True when the config holds ``value`` at ``key`` already, of the same type (setting it would change
         nothing: an exact comparison that only skips a no-op)."""
-        current = OmegaConf.select(self.cfg, key, default=None, throw_on_missing=False)
-        if isinstance(current, (DictConfig, ListConfig)):
-            current = OmegaConf.to_container(current, resolve=True)
-        return _same(value, current)
+        return _same(value, self.value(key))
 
     def simulation_with(self, values: Mapping[str, Any]):
         """The :class:`~ddmr_cli.engine.simulation.Simulation` of the config with ``values`` (dotted key -> value)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
@@ -191,22 +191,26 @@ class Box:
             return ratios[0] if ratios else 1.0
         return float(_select(cfg, key)) / coefficient
 
-    def key_values(self, sample: Mapping[str, Any], cfg: DictConfig) -> dict[str, Any]:
+    def key_values(self, sample: Mapping[str, Any], cfg: DictConfig,
+                   current: Callable[[str], Any] | None = None) -> dict[str, Any]:
         """Config key -> value for a sample, relative to ``cfg`` (scale parameters multiply its values). Keys
-        ``cfg`` does not have (``controller.nn.*`` of a controller without network) are left out."""
+        ``cfg`` does not have (``controller.nn.*`` of a controller without network) are left out. ``current``:
+        the value ``cfg`` holds at a key, None for none (default: selected from ``cfg``; a study job passes its
+        built config's lookup, :meth:`~ddmr_cli.config.variants.Variants.value`)."""
+        current_of = current if current is not None else (lambda key: _select(cfg, key))
         out: dict[str, Any] = {}
         for name, value in sample.items():
             p = self[name]
             for key, coefficient in p.keys.items():
-                current = _select(cfg, key)
-                if current is None:
+                held = current_of(key)
+                if held is None:
                     continue
                 if p.is_choice:
                     out[key] = value
                 elif p.mode == SCALE:
-                    current = _plain(current)
-                    out[key] = ([float(v) * float(value) for v in current] if isinstance(current, list)
-                                else float(current) * float(value))
+                    held = _plain(held)
+                    out[key] = ([float(v) * float(value) for v in held] if isinstance(held, list)
+                                else float(held) * float(value))
                 else:
                     out[key] = int(round(coefficient * value)) if p.integer else float(coefficient * value)
         return out

@@ -47,7 +47,7 @@ def simulate_sample(box: Box, configs: dict[tuple[str, str], Variants], sample: 
 
     runs, n, diverged = {}, 0, 0
     for key, base in configs.items():
-        sim = base.simulation_with(box.key_values(sample, base.cfg))
+        sim = base.simulation_with(box.key_values(sample, base.cfg, base.value))
         result = simulate(sim, seeds, bands=False, threads=threads)
         runs[key] = {m: result.metric(m) for m in claim_stats.METRICS}
         n += len(seeds)
