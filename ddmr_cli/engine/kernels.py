@@ -50,6 +50,7 @@ from typing import Callable
 
 from ddmr_cli.compiled import AVAILABLE, jit_enabled
 from ddmr_cli.engine.controller_slot import DEFAULT_MODULE
+from ddmr_cli.keyed import Keyed
 
 _TEMPLATE_MODULE = "ddmr_cli.engine.stepper"
 _SLOT_MODULE = "ddmr_cli.engine.controller_slot"
@@ -198,7 +199,7 @@ def call_identity(args) -> str:
     fingerprint = _fingerprint(args)
     if fingerprint is None:
         return _typed_identity(args)
-    return _identity_by_fingerprint(_Fingerprinted(fingerprint, args))
+    return _identity_by_fingerprint(Keyed(fingerprint, args))
 
 
 def _typed_identity(args) -> str:
@@ -229,26 +230,11 @@ def _fingerprint(arg):
     return None
 
 
-class _Fingerprinted:
-    """A call's arguments, hashed and compared by their fingerprint; the arguments are dropped once typed (the memo
-    keeps no array alive)."""
-
-    __slots__ = ("fingerprint", "args")
-
-    def __init__(self, fingerprint, args) -> None:
-        self.fingerprint, self.args = fingerprint, args
-
-    def __hash__(self) -> int:
-        return hash(self.fingerprint)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _Fingerprinted) and other.fingerprint == self.fingerprint
-
-
 @lru_cache(maxsize=256)
-def _identity_by_fingerprint(call: _Fingerprinted) -> str:
-    identity = _typed_identity(call.args)
-    call.args = None
+def _identity_by_fingerprint(call: Keyed) -> str:
+    """The identity of the arguments ``call`` carries, kept by their fingerprint (the arguments are dropped)."""
+    identity = _typed_identity(call.value)
+    call.value = None
     return identity
 
 

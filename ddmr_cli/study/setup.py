@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from ddmr_cli.keyed import Keyed
 from ddmr_cli.study.design import Design, build
 from ddmr_cli.study.space import Box
 
@@ -47,27 +48,12 @@ def study_configs(cfg: DictConfig) -> dict[tuple[str, str], DictConfig]:
 JOB_SETTINGS = ("chunk", "reading")
 
 
-class _ByDigest:
-    """A config carried into :func:`_built` (a memo), hashed and compared by its digest."""
-
-    __slots__ = ("cfg", "digest")
-
-    def __init__(self, cfg: DictConfig, digest: str) -> None:
-        self.cfg, self.digest = cfg, digest
-
-    def __hash__(self) -> int:
-        return hash(self.digest)
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _ByDigest) and other.digest == self.digest
-
-
 @lru_cache(maxsize=2)
-def _built(keyed: _ByDigest) -> tuple[Box, dict[tuple[str, str], Variants], dict[str, Any]]:
+def _built(keyed: Keyed) -> tuple[Box, dict[tuple[str, str], Variants], dict[str, Any]]:
     from ddmr_cli.config.variants import Variants
 
-    box = Box.from_config(keyed.cfg.study)
-    configs = study_configs(keyed.cfg)
+    box = Box.from_config(keyed.value.study)
+    configs = study_configs(keyed.value)
     variants = {key: Variants(one) for key, one in configs.items()}
     return box, variants, box.faithful_across(list(configs.values()))
 
@@ -84,7 +70,7 @@ def study_models(cfg: DictConfig) -> tuple[Box, dict[tuple[str, str], Variants],
     for key in JOB_SETTINGS:
         container["study"].pop(key, None)
     digest = hashlib.sha256(json.dumps(container, sort_keys=True, default=str).encode()).hexdigest()
-    return _built(_ByDigest(cfg, digest))
+    return _built(Keyed(digest, cfg))
 
 
 def study_setup(cfg: DictConfig, sweep_dir: Path | None = None
