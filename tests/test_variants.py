@@ -94,6 +94,19 @@ def test_every_parameter_rebuilt_in_place_is_the_full_paths_simulation(key, box,
     assert base.simulation_with(box.key_values(faithful, base.cfg)) is base.simulation
 
 
+def test_a_variant_shares_the_untouched_parts_and_leaves_them_as_they_were(variants):
+    """A variant keeps the base's controller object when no controller key changed; simulating it leaves the
+    base's numbers as they were (every simulate call starts the controller afresh)."""
+    base = variants[("smc_ndo_nno", "paper_1")]
+    first = simulate(base.simulation, [5, 6], bands=False, threads=1)
+    other = base.simulation_with({"robot.max_voltage": 18.0, "terrain.correlation_time": 0.01})
+    assert other.controller is base.simulation.controller and other.robot != base.simulation.robot
+    simulate(other, [5, 6], bands=False, threads=1)
+    again = simulate(base.simulation, [5, 6], bands=False, threads=1)
+    for metric in ("deviation_mae", "d_est_mae", "chattering"):
+        np.testing.assert_array_equal(first.metric(metric), again.metric(metric))
+
+
 @pytest.mark.parametrize("values", [{"robot.max_voltage": -1.0}, {"controller.nn.width": 0.0},
                                     {"simulation.dt": 0.05}, {"terrain.correlation_time": -0.1},
                                     {"simulation.integrator": "midpoint"}])

@@ -69,9 +69,9 @@ class Variants:
     def __init__(self, cfg: DictConfig) -> None:
         self.cfg = cfg
         self.simulation = validate_config(cfg)
+        self._values: dict[str, Any] = {}
         #: False when a value the simulation is built or checked from is an interpolation: a changed value could
         #: flow into another section, and every change takes the full path
-        self._values: dict[str, Any] = {}
         self.in_place = not any(_interpolated(cfg.get(name)) for name in (*SECTION_BUILDERS, *CHECKED))
 
     def _in_place(self, key: str) -> bool:
