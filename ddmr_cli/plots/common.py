@@ -33,6 +33,10 @@ REFERENCE_STYLE = {"color": "0.45", "ls": (0, (5, 2.5)), "lw": 1.3}
 
 DPI = 110
 MAX_POINTS = 5000
+#: zlib level of the PNGs (Pillow's default: 6). Level 3 encodes ``ddmr run``'s three figures in 0.06 s instead of
+#: 0.085 s, in files of about the same size (the paper run's 75/157/211 kB against 74/160/225 kB; up to 13 % larger
+#: on other runs); the pixels are the same
+PNG_COMPRESSION = 3
 
 
 @dataclass(frozen=True)
@@ -164,7 +168,8 @@ def save(fig, path: Path, tight: bool = True, dpi: int = DPI) -> Path:
     its axes itself), then a single draw (``bbox_inches="tight"`` would draw twice)."""
     if tight:
         fig.tight_layout()
-    atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+    atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi,
+                                                     pil_kwargs={"compress_level": PNG_COMPRESSION}))
     if getattr(fig.canvas, "manager", None) is not None:  # a pyplot figure: release it (a Figure() has no manager)
         pyplot().close(fig)
     return Path(path)
