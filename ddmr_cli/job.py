@@ -195,11 +195,17 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
 def _plot_processes():
     from ddmr_cli.plots.processes import PlotProcesses
 
-    return PlotProcesses()
+    return PlotProcesses.take()
 
 
 def _write(cfg: DictConfig, sim, result, out: Path, overrides, digest, plot_processes) -> dict:
-    """Every output file of a simulated job into ``out``; the figures by ``plot_processes`` when given."""
+    """Every output file of a simulated job into ``out``; the figures by ``plot_processes`` when given, which
+    draw them while this writes the other files."""
+    plots = bool(cfg.run.plots and result.series)
+    seed = next(iter(result.series), None)
+    if plots and plot_processes is not None:
+        plot_processes.send(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
+                            settle_time=float(cfg.metrics.settle_time))
     io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
@@ -207,13 +213,13 @@ def _write(cfg: DictConfig, sim, result, out: Path, overrides, digest, plot_proc
         io.write_bands(out / io.BANDS, result.bands)
     if result.series:
         io.write_series(out / io.SERIES, result.series)
-        if cfg.run.plots:
-            from ddmr_cli.plots.run import run_plots
+    if plots and plot_processes is not None:
+        plot_processes.collect()
+    elif plots:
+        from ddmr_cli.plots.run import run_plots
 
-            seed = next(iter(result.series))
-            draw = plot_processes.draw if plot_processes is not None else run_plots
-            draw(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
-                 settle_time=float(cfg.metrics.settle_time))
+        run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
+                  settle_time=float(cfg.metrics.settle_time))
     return {
         "status": "complete",
         "controller": result.controller,
