@@ -25,8 +25,9 @@ from contextvars import ContextVar
 from pathlib import Path
 
 #: the figures each process draws: one each (three processes for two cores: each figure's drawing is mostly the
-#: same fixed cost of ticks and text, and the three finish together)
-SHARES = (("trajectory",), ("errors",), ("control",))
+#: same fixed cost of ticks and text, and the three finish together), the longest to draw first (its frame is made
+#: first and its run sent first)
+SHARES = (("control",), ("errors",), ("trajectory",))
 
 
 def _serve(conns, job_ends, shares: tuple[tuple[str, ...], ...]) -> None:
