@@ -47,6 +47,7 @@ def _serve(conns, job_ends, shares: tuple[tuple[str, ...], ...]) -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the job's: it ends these processes (close)
+    signal.signal(signal.SIGTERM, _quit)
     gc.disable()
     for end in job_ends:
         end.close()
@@ -92,6 +93,12 @@ def _serve(conns, job_ends, shares: tuple[tuple[str, ...], ...]) -> None:
             os.waitpid(pid, 0)
 
 
+def _quit(*_signal) -> None:
+    """SIGTERM in a drawing process: :class:`SystemExit`, so that what it was doing unwinds (with its files and
+    locks; matplotlib's font cache has one) before it ends."""
+    raise SystemExit(0)
+
+
 #: the drawing processes a command started for a single run's figures before it knew the run (the ``ddmr run``
 #: program: :func:`ddmr_cli.cli.main.console`), for the job to take (:meth:`PlotProcesses.take`); None: none
 STARTED: ContextVar["PlotProcesses | None"] = ContextVar("ddmr_plot_processes", default=None)
@@ -109,6 +116,7 @@ class PlotProcesses:
         self._shares = shares
         self._process = None
         self._sent = None
+        self._used = False
         if not sys.platform.startswith("linux"):
             return
         context = multiprocessing.get_context("fork")
@@ -172,7 +180,7 @@ class PlotProcesses:
                 sent.append((share, conn))
             except (OSError, ValueError):
                 pass
-        self._sent = (run, series, sent)
+        self._sent, self._used = (run, series, sent), True
 
     def collect(self) -> list[Path]:
         """The paths of every figure of the run :meth:`send` handed over, in :data:`~ddmr_cli.plots.run.FIGURES`'
@@ -202,7 +210,9 @@ class PlotProcesses:
         return self.collect()
 
     def close(self) -> None:
-        """Tell the processes to quit and wait for them (killed when they do not end within 5 s)."""
+        """Tell the processes to quit and wait for them (killed when they do not end within 5 s). Processes that
+        were never sent a run are stopped at once (SIGTERM, which they turn into :class:`SystemExit`, so they
+        unwind cleanly, even in matplotlib's import): a run that fails its config check does not wait for them."""
         for conn in self._conns:
             try:
                 conn.send(None)
@@ -210,6 +220,8 @@ class PlotProcesses:
                 pass
             conn.close()
         if self._process is not None:
+            if not self._used:
+                self._process.terminate()
             self._process.join(5.0)
             if self._process.is_alive():
                 self._process.kill()
