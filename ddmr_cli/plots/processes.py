@@ -8,7 +8,11 @@ its frames, saves them into the job's directory and reports the paths (:meth:`Pl
 the job writes its other files. The ``ddmr run`` program starts these processes first thing
 (:meth:`PlotProcesses.started`, :func:`ddmr_cli.cli.main.console`), from a process that has imported next to
 nothing, so that they get ready on the processor its imports, Hydra and the loading of the compiled step loop
-leave idle; the job takes them (:meth:`PlotProcesses.take`), or starts its own.
+leave idle; the job takes them (:meth:`PlotProcesses.take`), or starts its own. Measured on the 2-core machine:
+the frames are ready 0.66 s into ``ddmr run``, before the simulation ends (0.95-1.0 s), and the figures then take
+0.11/0.14/0.17 s of CPU each (trajectory/errors/control; 0.16/0.21/0.25 s drawn from nothing), finishing about
+0.25 s after it; ``ddmr run`` 1.24 s against 1.40 s with processes forked just before the simulation that imported
+matplotlib then (medians of 21 paired runs).
 
 Processes are forked only on Linux, where a fork copies the forking thread alone; the drawing processes take no
 lock of the job's other threads (they import, draw and write their own files; CPython re-initialises the import
