@@ -5,6 +5,11 @@ and not its pyplot (:func:`.common.figure`). Errors are in millimetres (heading 
 the terrain zones and the start-up transient (``t < settle_time``, the window the steady-state metrics skip), and
 the linear axes fit the steady state, so the transient does not flatten them; the deviation is on a log scale
 over the whole run, and the control signals have a full-resolution zoom into the steady state.
+
+Each figure is drawn in two steps (:class:`_Figure`): its frame, the same for every run, then the run into it; a
+drawing process (:mod:`.processes`) makes and draws the frames before the run exists. The frames and the drawing
+need matplotlib and numpy only; what they take from the configuration and the engine (label, style, estimators:
+:class:`Run`) is made in the job's process.
 """
 
 from __future__ import annotations
