@@ -177,7 +177,8 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
 
     label = f"{sim.controller.name}/{sim.scenario.name}"
     keep = kept_seeds(cfg.run)
-    # a single run's figures: processes forked now import matplotlib while this one simulates (plots/processes.py)
+    # a single run's figures: the drawing processes the program started (or started now) get ready while this one
+    # simulates (plots/processes.py)
     drawing = _plot_processes() if cfg.run.plots and keep and bars else contextlib.nullcontext()
     with drawing as plot_processes:
         progress = StepBar(label, len(seeds), sim.n_steps, enabled=bool(cfg.run.progress) and bars)
@@ -193,6 +194,7 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
 
 
 def _plot_processes():
+    """The drawing processes of a single run's figures: those the ``ddmr run`` program started, else new ones."""
     from ddmr_cli.plots.processes import PlotProcesses
 
     return PlotProcesses.take()
