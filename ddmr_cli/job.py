@@ -177,7 +177,8 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
 
     label = f"{sim.controller.name}/{sim.scenario.name}"
     keep = kept_seeds(cfg.run)
-    # a single run's figures: processes forked now import matplotlib while this one simulates (plots/processes.py)
+    # a single run's figures: the drawing processes the program started (or started now) get ready while this one
+    # simulates (plots/processes.py)
     drawing = _plot_processes() if cfg.run.plots and keep and bars else contextlib.nullcontext()
     with drawing as plot_processes:
         progress = StepBar(label, len(seeds), sim.n_steps, enabled=bool(cfg.run.progress) and bars)
@@ -193,13 +194,20 @@ def _simulate_and_write(cfg: DictConfig, sim, seeds: list[int], out: Path, overr
 
 
 def _plot_processes():
+    """The drawing processes of a single run's figures: those the ``ddmr run`` program started, else new ones."""
     from ddmr_cli.plots.processes import PlotProcesses
 
-    return PlotProcesses()
+    return PlotProcesses.take()
 
 
 def _write(cfg: DictConfig, sim, result, out: Path, overrides, digest, plot_processes) -> dict:
-    """Every output file of a simulated job into ``out``; the figures by ``plot_processes`` when given."""
+    """Every output file of a simulated job into ``out``; the figures by ``plot_processes`` when given, which
+    draw them while this writes the other files."""
+    plots = bool(cfg.run.plots and result.series)
+    seed = next(iter(result.series), None)
+    if plots and plot_processes is not None:
+        plot_processes.send(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
+                            settle_time=float(cfg.metrics.settle_time))
     io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))
     io.write_csv(out / io.METRICS_CSV, result.iter_rows())
     io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
@@ -207,13 +215,13 @@ def _write(cfg: DictConfig, sim, result, out: Path, overrides, digest, plot_proc
         io.write_bands(out / io.BANDS, result.bands)
     if result.series:
         io.write_series(out / io.SERIES, result.series)
-        if cfg.run.plots:
-            from ddmr_cli.plots.run import run_plots
+    if plots and plot_processes is not None:
+        plot_processes.collect()
+    elif plots:
+        from ddmr_cli.plots.run import run_plots
 
-            seed = next(iter(result.series))
-            draw = plot_processes.draw if plot_processes is not None else run_plots
-            draw(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
-                 settle_time=float(cfg.metrics.settle_time))
+        run_plots(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
+                  settle_time=float(cfg.metrics.settle_time))
     return {
         "status": "complete",
         "controller": result.controller,

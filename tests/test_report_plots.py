@@ -105,9 +105,17 @@ def _run_series(n: int = 3000) -> dict:
     return series
 
 
+def _pixels(path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image)
+
+
 def test_plot_processes_draw_every_figure_and_end(tmp_path):
-    """``ddmr run``'s figures drawn by the forked processes: the same files as drawn in the job's process (same
-    names, valid PNGs, same pixel size), each by another process, and no process left behind."""
+    """``ddmr run``'s figures drawn by the forked processes into frames drawn before the run was known: the same
+    files as drawn in the job's process (same names, same pixels), each by another process, and no process left
+    behind."""
     import multiprocessing
     import os
 
@@ -118,13 +126,14 @@ def test_plot_processes_draw_every_figure_and_end(tmp_path):
     drawers.mkdir()
     real = dict(R.FIGURES)
 
-    def recording(name):
-        def draw(run, out_dir):
-            (drawers / f"{name}.{os.getpid()}").touch()
-            return real[name](run, out_dir)
-        return draw
+    def recording(name, figure):
+        class Recording(figure):
+            def finish(self, run, series):
+                (drawers / f"{name}.{os.getpid()}").touch()
+                return super().finish(run, series)
+        return Recording
 
-    R.FIGURES.update({name: recording(name) for name in real})
+    R.FIGURES.update({name: recording(name, figure) for name, figure in real.items()})
     try:
         with PlotProcesses() as processes:
             paths = processes.draw(_run_series(), "smc_ndo", "paper_1", 0, tmp_path / "forked")
@@ -134,10 +143,55 @@ def test_plot_processes_draw_every_figure_and_end(tmp_path):
     assert [p.name for p in paths] == [p.name for p in here] == ["trajectory.png", "errors.png", "control.png"]
     for forked, local in zip(paths, here):
         assert forked.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-        assert forked.read_bytes()[16:24] == local.read_bytes()[16:24]  # IHDR: width and height
+        assert np.array_equal(_pixels(forked), _pixels(local))
     pids = {p.name.split(".")[1] for p in drawers.iterdir()}
     assert len(pids) == 3 and str(os.getpid()) not in pids  # one process a figure, none of them this one
     assert not multiprocessing.active_children()
+
+
+def test_a_warm_frame_draws_the_same_figure(tmp_path):
+    """A frame drawn before its run (the drawing processes' ``warm``) gives the same pixels as one drawn once."""
+    from ddmr_cli.plots.run import Run, RunInfo, frames
+
+    series = _run_series()
+    run = Run.of(RunInfo("smc_ndo", "paper_1", 0, tmp_path / "warm"), series)
+    cold = Run.of(RunInfo("smc_ndo", "paper_1", 0, tmp_path / "cold"), series)
+    for warm, once in zip(frames(warm=True), frames()):
+        assert np.array_equal(_pixels(warm.finish(run, warm.channels(series))),
+                              _pixels(once.finish(cold, once.channels(series))))
+
+
+def test_each_figure_is_sent_every_channel_it_reads(tmp_path):
+    """A drawing process is sent only its figures' channels (:meth:`channels`): every channel a figure reads (or
+    looks for: ``distance``, ``zone``) is among them."""
+    from ddmr_cli.plots.run import FIGURES, Run, RunInfo
+
+    class Reads(dict):
+        def __init__(self, *args):
+            super().__init__(*args)
+            self.read = set()
+
+        def __getitem__(self, key):
+            self.read.add(key)
+            return super().__getitem__(key)
+
+        def get(self, key, default=None):
+            self.read.add(key)
+            return super().get(key, default)
+
+        def __contains__(self, key):
+            self.read.add(key)
+            return super().__contains__(key)
+
+    series = _run_series()
+    series.update(distance=series["t"], zone=(series["t"] > 1.5).astype(float), d_hat_ndo_left=series["t"])
+    run = Run.of(RunInfo("smc_ndo", "paper_1", 0, tmp_path), series)
+    for name, figure in FIGURES.items():
+        sent = figure.channels(series)
+        reads = Reads(sent)
+        figure().finish(run, reads)
+        assert reads.read <= set(sent), name
+        assert len(sent) < len(series), name
 
 
 def test_a_failing_plot_process_leaves_its_figure_to_the_job(tmp_path):
@@ -151,12 +205,13 @@ def test_a_failing_plot_process_leaves_its_figure_to_the_job(tmp_path):
     job = os.getpid()
     real = R.FIGURES["control"]
 
-    def only_here(run, out_dir):
-        if os.getpid() != job:
-            raise RuntimeError("no drawing in this process")
-        return real(run, out_dir)
+    class OnlyHere(real):
+        def finish(self, run, series):
+            if os.getpid() != job:
+                raise RuntimeError("no drawing in this process")
+            return super().finish(run, series)
 
-    R.FIGURES["control"] = only_here
+    R.FIGURES["control"] = OnlyHere
     try:
         with PlotProcesses() as processes:
             paths = processes.draw(_run_series(), "smc_ndo", "paper_1", 0, tmp_path)
@@ -175,6 +230,61 @@ def test_plot_processes_end_when_nothing_is_drawn():
     with PlotProcesses():
         pass
     assert not multiprocessing.active_children()
+
+
+def test_plot_processes_started_early_are_the_jobs():
+    """Drawing processes started before the job (``ddmr run``'s console) are the ones its job takes, once; they
+    end with the context, and a context without them gives a job its own."""
+    import multiprocessing
+
+    from ddmr_cli.plots.processes import PlotProcesses
+
+    with PlotProcesses.started() as early:
+        taken = PlotProcesses.take()
+        assert taken is early
+        with PlotProcesses.take() as own:  # a second job of the context: its own processes
+            assert own is not early
+    assert not multiprocessing.active_children()
+
+
+def test_the_console_starts_drawing_processes_for_a_single_run_only():
+    """Started first thing for ``ddmr run [KEY=VALUE ...]``; not for a sweep, a flag, ``run.plots=false`` or
+    another command."""
+    import contextlib
+    import multiprocessing
+
+    from ddmr_cli.cli import main as M
+    from ddmr_cli.plots.processes import PlotProcesses
+
+    for argv in (None, [], ["report"], ["run", "-m"], ["run", "--cfg", "job"], ["run", "run.plots=false"],
+                 ["run", "controller=pid", "run.plots = False"], ["run", "+run.plots=0"]):
+        assert isinstance(M._plot_processes(argv), contextlib.nullcontext), argv
+    with M._plot_processes(["run", "controller=pid", "run.plots=true"]) as processes:
+        assert isinstance(processes, PlotProcesses)
+    assert not multiprocessing.active_children()
+
+
+def test_a_drawing_process_imports_neither_the_configuration_nor_the_engine(tmp_path):
+    """What a drawing process does (frames, then a run made in the job's process) imports matplotlib and the plots
+    alone: started before the job's imports, it has none of Hydra, numba or the configuration to import."""
+    import pickle
+    import subprocess
+    import sys
+
+    from ddmr_cli.plots.run import FIGURES, Run, RunInfo
+
+    series = _run_series()
+    run = Run.of(RunInfo("smc_ndo", "paper_1", 0, tmp_path), series)
+    job = tmp_path / "job.pickle"
+    job.write_bytes(pickle.dumps((run, {name: figure.channels(series) for name, figure in FIGURES.items()})))
+    code = ("import pickle, sys\nfrom ddmr_cli.plots.run import FIGURES\n"
+            f"run, parts = pickle.loads(open({str(job)!r}, 'rb').read())\n"
+            "for name, figure in FIGURES.items():\n    figure(warm=True).finish(run, parts[name])\n"
+            "print(sorted(m for m in ('numba', 'hydra', 'omegaconf', 'ddmr_cli.config', 'ddmr_cli.engine') "
+            "if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == ["control.png", "errors.png", "trajectory.png"]
 
 
 # --- numbers from time series -------------------------------------------------------------------------------------
