@@ -218,7 +218,11 @@ def _drop_display(node) -> None:
             _drop_display(value)
 
 
+def container_digest(container: Any) -> str:
+    """SHA-256 (hex) of a plain config container: its JSON, keys sorted (a value JSON cannot spell, as its str)."""
+    return hashlib.sha256(json.dumps(container, sort_keys=True, default=str).encode()).hexdigest()
+
+
 def config_hash(cfg: DictConfig) -> str:
-    """SHA-256 of :func:`result_config`: equal hashes mean equal numbers."""
-    text = json.dumps(result_config(cfg), sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    """SHA-256 of :func:`result_config` (16 hex digits): equal hashes mean equal numbers."""
+    return container_digest(result_config(cfg))[:16]

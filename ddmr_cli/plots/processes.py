@@ -189,7 +189,7 @@ class PlotProcesses:
     def collect(self) -> list[Path]:
         """The paths of every figure of the run :meth:`send` handed over, in :data:`~ddmr_cli.plots.run.FIGURES`'
         order, those of a share whose process is missing or failed drawn here."""
-        from ddmr_cli.plots.run import FIGURES, frames
+        from ddmr_cli.plots.run import FIGURES, draw_run
 
         run, series, sent = self._sent
         self._sent = None
@@ -203,7 +203,7 @@ class PlotProcesses:
                 drawn.update(zip(share, map(Path, value)))
         missing = tuple(name for name in FIGURES if name not in drawn)
         if missing:
-            drawn.update(zip(missing, [frame.finish(run, frame.channels(series)) for frame in frames(missing)]))
+            drawn.update(zip(missing, draw_run(run, series, missing)))
         return [drawn[name] for name in FIGURES]
 
     def draw(self, series: dict, controller: str, scenario: str, seed: int, out_dir: Path,

@@ -305,7 +305,12 @@ def run_plots(series: dict[str, np.ndarray], controller: str, scenario: str, see
     """Trajectory, errors and control signal of one run: three PNGs in ``out_dir`` (``figures``: some of
     :data:`FIGURES` only); ``settle_time`` is ``metrics.settle_time`` (the start of the steady state the axes
     fit)."""
-    run = Run.of(RunInfo(controller, scenario, seed, Path(out_dir), settle_time), series)
+    return draw_run(Run.of(RunInfo(controller, scenario, seed, Path(out_dir), settle_time), series), series, figures)
+
+
+def draw_run(run: Run, series: dict[str, np.ndarray], figures: tuple[str, ...] | None = None) -> list[Path]:
+    """The figures ``figures`` (every one of :data:`FIGURES` by default) of ``run`` and its ``series``, drawn here
+    into new frames: their paths."""
     return [frame.finish(run, frame.channels(series)) for frame in frames(figures)]
 
 

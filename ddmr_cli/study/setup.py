@@ -4,8 +4,6 @@ per controller and scenario configs, the faithful reading and the stage's design
 from __future__ import annotations
 
 import copy
-import hashlib
-import json
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -65,12 +63,13 @@ def study_models(cfg: DictConfig) -> tuple[Box, dict[tuple[str, str], Variants],
     Kept per process for the last two study configs that differ only in :data:`JOB_SETTINGS` (and the ``hydra``
     node): a launcher's worker runs many jobs of one stage (the calibration's trials: one sample each), and
     building the 8 configs took about a third of such a job. Built anew (and raising) for a config refused."""
+    from ddmr_cli.config.build import container_digest
+
     container = OmegaConf.to_container(cfg, resolve=True)
     container.pop("hydra", None)
     for key in JOB_SETTINGS:
         container["study"].pop(key, None)
-    digest = hashlib.sha256(json.dumps(container, sort_keys=True, default=str).encode()).hexdigest()
-    return _built(Keyed(digest, cfg))
+    return _built(Keyed(container_digest(container), cfg))
 
 
 def study_setup(cfg: DictConfig, sweep_dir: Path | None = None

@@ -231,10 +231,9 @@ class Box:
     def sample_of_overrides(self, overrides: Sequence[str], cfg: DictConfig, names: Sequence[str]) -> dict:
         """The values of ``names`` that ``overrides`` (from :meth:`overrides`) describe, read back from ``cfg``
         with the overrides applied: the inverse of :meth:`overrides`."""
-        out = cfg.copy()
-        for ov in overrides:
-            key, _, text = ov.partition("=")
-            OmegaConf.update(out, key, _parse_value(text), merge=False)
+        from ddmr_cli.config.variants import with_values
+
+        out = with_values(cfg, {key: _parse_value(text) for key, _, text in (ov.partition("=") for ov in overrides)})
         return {n: self._value_in(self[n], out, base=cfg) for n in names}
 
 
