@@ -264,6 +264,36 @@ def test_the_console_starts_drawing_processes_for_a_single_run_only():
     assert not multiprocessing.active_children()
 
 
+def test_a_stop_where_python_cannot_raise_it_is_silent_and_the_process_goes_on():
+    """A SIGTERM (close of processes never sent a run) that lands where Python cannot propagate an exception (an
+    at-fork hook: logging's, seen once in CI; a weakref callback) prints nothing into the job's stderr, and the
+    drawing process goes on to its next wait; elsewhere it still ends the process, and other unraisable errors are
+    still reported."""
+    import subprocess
+    import sys
+
+    code = ("import os, signal, weakref\n"
+            "from ddmr_cli.plots.processes import _take_signals\n"
+            "_take_signals()\n"
+            "def stop(*_):\n    os.kill(os.getpid(), signal.SIGTERM)\n    for _ in range(1000): pass\n"
+            "os.register_at_fork(after_in_parent=stop)\n"
+            "pid = os.fork()\n"
+            "if pid == 0: os._exit(0)\n"
+            "os.waitpid(pid, 0)\n"
+            "class A: pass\n"
+            "a = A(); r = weakref.ref(a, stop); del a\n"
+            "class B:\n    def __del__(self): raise ValueError('not a stop')\n"
+            "B()\n"
+            "print('went on', flush=True)\n"
+            "stop()\n"
+            "print('not reached')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.stdout == "went on\n"
+    assert proc.returncode == 0, proc.stderr
+    assert "SystemExit" not in proc.stderr and "_Stop" not in proc.stderr, proc.stderr
+    assert "ValueError: not a stop" in proc.stderr
+
+
 def test_a_drawing_process_imports_neither_the_configuration_nor_the_engine(tmp_path):
     """What a drawing process does (frames, then a run made in the job's process) imports matplotlib and the plots
     alone: started before the job's imports, it has none of Hydra, numba or the configuration to import."""

@@ -48,10 +48,8 @@ def _serve(conns, job_ends, shares: tuple[tuple[str, ...], ...]) -> None:
     objects, 30 ms)."""
     import gc
     import os
-    import signal
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the job's: it ends these processes (close)
-    signal.signal(signal.SIGTERM, _quit)
+    _take_signals()
     gc.disable()
     for end in job_ends:
         end.close()
@@ -97,10 +95,38 @@ def _serve(conns, job_ends, shares: tuple[tuple[str, ...], ...]) -> None:
             os.waitpid(pid, 0)
 
 
+class _Stop(SystemExit):
+    """SIGTERM in a drawing process (:meth:`PlotProcesses.close` of processes never sent a run): a
+    :class:`SystemExit`, so that what the process was doing unwinds (with its files and locks; matplotlib's font
+    cache has one) before it ends."""
+
+
 def _quit(*_signal) -> None:
-    """SIGTERM in a drawing process: :class:`SystemExit`, so that what it was doing unwinds (with its files and
-    locks; matplotlib's font cache has one) before it ends."""
-    raise SystemExit(0)
+    """The drawing processes' SIGTERM handler: raise :class:`_Stop`."""
+    raise _Stop(0)
+
+
+def _ignore_stop(unraisable, default) -> None:
+    """``sys.unraisablehook`` of a drawing process: a :class:`_Stop` raised where Python cannot propagate it (an
+    at-fork hook, a weakref callback, a ``__del__``) is dropped silently; anything else goes to ``default``.
+
+    The process then goes on to its next wait, where the ``None`` that :meth:`PlotProcesses.close` sent before its
+    SIGTERM ends it. Without this, Python prints "Exception ignored in ... SystemExit: 0" into the job's stderr
+    (seen once in about 120 stops under load: the signal came while logging's after-fork hook ran)."""
+    if not isinstance(unraisable.exc_value, _Stop):
+        default(unraisable)
+
+
+def _take_signals() -> None:
+    """A drawing process's signals: Ctrl-C ignored (it is the job's, which then ends these processes,
+    :meth:`PlotProcesses.close`), SIGTERM raising :class:`_Stop`, and a stop that cannot propagate dropped
+    (:func:`_ignore_stop`)."""
+    import functools
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _quit)
+    sys.unraisablehook = functools.partial(_ignore_stop, default=sys.unraisablehook)
 
 
 #: the drawing processes a command started for a single run's figures before it knew the run (the ``ddmr run``
