@@ -149,3 +149,48 @@ def test_the_study_builds_its_configs_once_per_process_and_config(study_cfg):
     other = study_models(with_values(study_cfg, {"run.n_runs": 5}))
     assert again[1] is first[1] and other[1] is not first[1]
     assert set(first[1]) == set(study_configs(study_cfg))
+
+
+def test_values_key_tells_apart_what_a_simulation_could_tell_apart():
+    """Two sets of values share a memo key only when they hold the same keys, in order, with values of the same
+    types and bits."""
+    from ddmr_cli.config.variants import values_key
+
+    base = values_key({"robot.max_voltage": 24.0, "simulation.initial_pose": [0.1, -0.2, 0.0]})
+    assert base == values_key({"robot.max_voltage": 24.0, "simulation.initial_pose": [0.1, -0.2, 0.0]})
+    hash(base)
+    for other in ({"robot.max_voltage": 24}, {"robot.max_voltage": True}, {"robot.max_voltage": 24.000000000000004},
+                  {"robot.max_voltage": -0.0}, {"simulation.initial_pose": [0.1, -0.2, -0.0]},
+                  {"simulation.initial_pose": [0.1, -0.2, 0.0], "robot.max_voltage": 24.0}):
+        assert values_key(other) != base, other
+    assert values_key({"a": 0.0}) != values_key({"a": -0.0})
+    assert values_key({"controller.switching": "sign"}) != values_key({"controller.switching": "sat"})
+
+
+def test_a_job_takes_an_identical_earlier_runs_numbers_to_the_bit(study_cfg, box):
+    """A study job's memo (ddmr_cli/study/task.py RunMemo): samples that leave a config as an earlier sample left it
+    (the network's parameters, for the controllers without one) take that config's numbers, equal to the bit to
+    simulating it again; every config a sample changes is simulated. The kept arrays are read-only."""
+    from ddmr_cli.study.task import RunMemo, simulate_sample
+
+    _, configs, _ = study_models(study_cfg)
+    seeds = [0, 1]
+    samples = [{"nn_width": 2.0}, {"nn_width": 20.0}, {"nn_width": 2.0, "k_y": 30.0}, {"nn_learning_rate": 5.0}]
+    memo = RunMemo(seeds)
+    with_memo = [simulate_sample(box, configs, s, seeds, 1, memo) for s in samples]
+    alone = [simulate_sample(box, configs, s, seeds, 1) for s in samples]
+    nn = [key for key in configs if key[0] == "smc_ndo_nno"]
+    others = [key for key in configs if key[0] != "smc_ndo_nno"]
+    # sample 1 and 3 change only the network: the three other controllers' runs of sample 0 again
+    assert memo.reused == 2 * len(others) * len(seeds)
+    for (runs, n, diverged), (runs0, n0, diverged0) in zip(with_memo, alone):
+        assert (n, diverged) == (n0, diverged0)
+        for key in configs:
+            for metric, values in runs[key].items():
+                np.testing.assert_array_equal(values, runs0[key][metric], err_msg=f"{key} {metric}")
+                assert not values.flags.writeable
+    # the network's configs differ between the samples, and so do their numbers
+    metric = next(iter(with_memo[0][0][nn[0]]))
+    assert not np.array_equal(with_memo[0][0][nn[0]][metric], with_memo[1][0][nn[0]][metric])
+    assert with_memo[0][0][others[0]][metric] is with_memo[1][0][others[0]][metric]
+    assert not np.array_equal(with_memo[0][0][others[0]][metric], with_memo[2][0][others[0]][metric])

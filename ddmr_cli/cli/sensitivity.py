@@ -93,17 +93,19 @@ def main(argv: Sequence[str]) -> int:
     path = write_report(out)
     total = sum(s["wall_time"] for s in record["stages"].values())
     runs = sum(s.get("runs", 0) for s in record["stages"].values())
-    print(f"ddmr sensitivity: {runs} simulated runs, {total:.0f} s wall time; report written to {path}")
+    print(f"ddmr sensitivity: {runs} runs, {total:.0f} s wall time; report written to {path}")
     return status
 
 
 def _counts(stage_dir: Path) -> dict:
-    """Samples and simulated runs of a stage dir (from its jobs' summaries)."""
+    """Samples and runs (and of those, the ones reused: :class:`~ddmr_cli.study.task.RunMemo`) of a stage dir (from its
+    jobs' summaries)."""
     from ddmr_cli.storage.sweep import read_state
 
     state = read_state(stage_dir)
     return {"jobs": len(state.complete), "samples": sum(int(s.get("samples", 0)) for _, s in state.complete),
             "runs": sum(int(s.get("statistics", {}).get("runs", 0)) for _, s in state.complete),
+            "reused": sum(int(s.get("statistics", {}).get("reused", 0)) for _, s in state.complete),
             "job_time": sum(float(s.get("wall_time", 0.0)) for _, s in state.complete)}
 
 

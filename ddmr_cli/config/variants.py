@@ -57,6 +57,20 @@ def _same(a: Any, b: Any) -> bool:
     return type(a) is type(b) and a == b
 
 
+def values_key(values: Mapping[str, Any]) -> tuple:
+    """``values`` (dotted key -> value) as a hashable record, equal for two mappings only when they hold the same
+    keys in the same order with values of the same types and the same bits (floats by :meth:`float.hex`: -0.0 is
+    not 0.0): a memo key for what a deterministic function of the values computed."""
+    def frozen(value: Any) -> Any:
+        if isinstance(value, (list, tuple)):
+            return tuple(frozen(v) for v in value)
+        if isinstance(value, Mapping):
+            return tuple((k, frozen(v)) for k, v in value.items())
+        return (type(value).__name__, value.hex() if isinstance(value, float) else value)
+
+    return tuple((key, frozen(value)) for key, value in values.items())
+
+
 class Variants:
     """A config validated and built once (:attr:`simulation`), and :meth:`simulation_with` changed values.
 
@@ -93,11 +107,15 @@ class Variants:
         nothing: an exact comparison that only skips a no-op)."""
         return _same(value, self.value(key))
 
+    def changes(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """The ``values`` the config does not hold already: what :meth:`simulation_with` sets."""
+        return {key: value for key, value in values.items() if not self._holds(key, value)}
+
     def simulation_with(self, values: Mapping[str, Any]):
         """The :class:`~ddmr_cli.engine.simulation.Simulation` of the config with ``values`` (dotted key -> value)
         set, checked as :func:`~ddmr_cli.config.validate.validate_config` checks it (ConfigError naming the key
         of a refused value). No values: :attr:`simulation` itself."""
-        values = {key: value for key, value in values.items() if not self._holds(key, value)}
+        values = self.changes(values)
         if not all(self._in_place(key) for key in values):
             return validate_config(with_values(self.cfg, values))
         sections: dict[str, DictConfig] = {}
@@ -113,4 +131,4 @@ class Variants:
         return sim
 
 
-__all__ = ["Variants", "with_values"]
+__all__ = ["Variants", "values_key", "with_values"]

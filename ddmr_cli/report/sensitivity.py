@@ -334,15 +334,17 @@ def write_report(out: Path) -> Path:
     else:
         lines += ["(the calibration stage did not run or had no usable sample)", ""]
     lines += ["## Figures", ""] + [f"### {title}\n\n![{title}]({p.relative_to(out)})\n" for title, p in figures]
-    lines += ["## Cost", "", md_table(["Stage", "Jobs", "Samples", "Simulated runs", "Wall time (s)",
+    lines += ["## Cost", "", md_table(["Stage", "Jobs", "Samples", "Runs", "Of which reused", "Wall time (s)",
                                        "Time in jobs (s)"],
                                       [[s, r.get("jobs", "-"), r.get("samples", "-"), r.get("runs", "-"),
-                                        f"{r['wall_time']:.0f}", f"{r.get('job_time', 0):.0f}"]
+                                        r.get("reused", "-"), f"{r['wall_time']:.0f}", f"{r.get('job_time', 0):.0f}"]
                                        for s, r in record["stages"].items()]), ""]
     total = sum(r["wall_time"] for r in record["stages"].values())
     runs = sum(r.get("runs", 0) for r in record["stages"].values())
-    lines += [f"Total: {runs} simulated runs (one run = one controller x scenario x seed over 15 s), "
-              f"{total:.0f} s wall time.", ""]
+    reused = sum(r.get("reused", 0) for r in record["stages"].values())
+    lines += [f"Total: {runs} runs (one run = one controller x scenario x seed over 15 s), of which {reused} took the "
+              "numbers of an identical run of the same job (a sample that left that controller's config as an "
+              f"earlier one did) instead of simulating it again; {total:.0f} s wall time.", ""]
     return io.write_text(out / REPORT, "\n".join(lines))
 
 

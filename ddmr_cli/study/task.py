@@ -37,21 +37,59 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("ddmr")
 
+class RunMemo:
+    """The per-seed metrics of every (controller, scenario) a study job has simulated, by the values its sample set
+    on that config (:meth:`~ddmr_cli.config.variants.Variants.changes`, :func:`~ddmr_cli.config.variants.values_key`).
+
+    A run is a deterministic function of its config and seed, so a sample whose values leave a config as an
+    earlier sample left it (a network parameter for a controller without a network, a map of the network's plane
+    for the three others, an OAT curve's faithful point) gives that config's earlier numbers, to the bit, without
+    simulating it again. Keys compare values by their bits (a no-op when they differ); at most ``size`` configs
+    are kept, the oldest dropped first. The arrays kept are copies, read-only."""
+
+    def __init__(self, seeds: list[int], size: int = 4096) -> None:
+        self.seeds, self.size = tuple(seeds), size
+        self._runs: dict[tuple, tuple[dict, int]] = {}
+        self.reused = 0
+
+    def get(self, key: tuple) -> tuple[dict, int] | None:
+        found = self._runs.get(key)
+        if found is not None:
+            self.reused += len(self.seeds)
+        return found
+
+    def put(self, key: tuple, metrics: dict, diverged: int) -> tuple[dict, int]:
+        for values in metrics.values():
+            values.setflags(write=False)
+        if len(self._runs) >= self.size:
+            del self._runs[next(iter(self._runs))]
+        self._runs[key] = (metrics, diverged)
+        return metrics, diverged
+
+
 def simulate_sample(box: Box, configs: dict[tuple[str, str], Variants], sample: dict, seeds: list[int],
-                    threads: int) -> tuple[dict, int, int]:
+                    threads: int, memo: RunMemo | None = None) -> tuple[dict, int, int]:
     """Every controller and scenario at one reading: per (controller, scenario) the per-seed metrics
     (:data:`~ddmr_cli.study.claims.METRICS`), and the counts of runs and diverged runs. ``configs``: each
     (controller, scenario) config built once (:class:`~ddmr_cli.config.variants.Variants`), the sample's values
-    set on it (:meth:`~ddmr_cli.study.space.Box.key_values`)."""
+    set on it (:meth:`~ddmr_cli.study.space.Box.key_values`); ``memo``: the job's runs so far (:class:`RunMemo`,
+    for ``seeds``), whose numbers a config left as an earlier sample left it takes."""
+    from ddmr_cli.config.variants import values_key
     from ddmr_cli.engine.simulation import simulate
 
     runs, n, diverged = {}, 0, 0
     for key, base in configs.items():
-        sim = base.simulation_with(box.key_values(sample, base.cfg, base.value))
-        result = simulate(sim, seeds, bands=False, threads=threads)
-        runs[key] = {m: result.metric(m) for m in claim_stats.METRICS}
+        values = base.changes(box.key_values(sample, base.cfg, base.value))
+        memo_key = (key, values_key(values))
+        found = memo.get(memo_key) if memo is not None else None
+        if found is None:
+            result = simulate(base.simulation_with(values), seeds, bands=False, threads=threads)
+            found = ({m: result.metric(m).copy() for m in claim_stats.METRICS}, int(result.diverged.sum()))
+            if memo is not None:
+                memo.put(memo_key, *found)
+        runs[key] = found[0]
         n += len(seeds)
-        diverged += int(result.diverged.sum())
+        diverged += found[1]
     return runs, n, diverged
 
 
@@ -92,10 +130,11 @@ def execute_study(cfg: DictConfig, place, digest: str | None = None, sim=None) -
     threads = place.threads(cfg)
     scenarios = list(dict.fromkeys(s for _, s in variants))
     rows, n_runs, n_diverged, failed = [], 0, 0, 0
+    memo = RunMemo(seeds)
     for count, i in enumerate(indices):
         sample = design.samples[i]
         try:
-            runs, n, d = simulate_sample(box, variants, sample, seeds, threads)
+            runs, n, d = simulate_sample(box, variants, sample, seeds, threads, memo)
             row = {**sample_row(i, design.labels[i], sample, runs, scenarios), "status": "ok", "error": ""}
             n_runs, n_diverged = n_runs + n, n_diverged + d
             row.update({"runs": n, "diverged": d})
@@ -114,15 +153,17 @@ def execute_study(cfg: DictConfig, place, digest: str | None = None, sim=None) -
         "status": "complete", "controller": "study", "scenario": design.stage, "overrides": overrides or [],
         "config_hash": digest or config_hash(cfg), "stage": design.stage, "samples": len(indices),
         "samples_failed": failed, "design_size": len(design.samples),
-        "seeds": [seeds[0], seeds[-1]], "statistics": {"runs": n_runs, "diverged": n_diverged},
+        "seeds": [seeds[0], seeds[-1]],
+        "statistics": {"runs": n_runs, "diverged": n_diverged, "reused": memo.reused},
         "wall_time": wall, **extra,
     }
     # staged and moved in with the summary (and every file's digest) last, as any job (storage/jobdir.py)
     with jobdir.Stage(out) as stage:
         io.write_csv(stage.path / STUDY_ROWS, pd.DataFrame(rows))
         summary = stage.commit(summary)
-    log.info("study %s chunk %s: %d samples (%d failed), %d runs (%d diverged) in %.1f s -> %s", design.stage,
-             cfg.study.chunk, len(indices), failed, n_runs, n_diverged, wall, out)
+    log.info("study %s chunk %s: %d samples (%d failed), %d runs (%d diverged; %d the numbers of an identical "
+             "earlier run) in %.1f s -> %s", design.stage, cfg.study.chunk, len(indices), failed, n_runs, n_diverged,
+             memo.reused, wall, out)
     return summary
 
 
@@ -163,13 +204,14 @@ def end_stage(config: DictConfig) -> None:
         rows = search.trial_rows(sweep_dir, rows, state.complete)
     io.write_csv(sweep_dir / STUDY_CSV, rows)
     runs = int(sum(s.get("statistics", {}).get("runs", 0) or 0 for _, s in state.complete))
+    reused = int(sum(s.get("statistics", {}).get("reused", 0) or 0 for _, s in state.complete))
     wall = sum(float(s.get("wall_time") or 0) for _, s in state.complete)
     print(f"\nddmr study {config.study.stage}: {len(state.complete)} jobs complete, {len(state.failed)} failed, "
-          f"{len(state.missing)} missing; {len(rows)} samples, {runs} simulated runs, {wall:.1f} s in jobs "
-          f"-> {sweep_dir}")
+          f"{len(state.missing)} missing; {len(rows)} samples, {runs} runs ({runs - reused} simulated, {reused} "
+          f"the numbers of an identical earlier run), {wall:.1f} s in jobs -> {sweep_dir}")
     if not rows.empty and not state.missing and not state.failed:
         for line in analyse(sweep_dir, config, rows):
             print("  " + line)
 
 
-__all__ = ["execute_study", "simulate_sample", "sample_row", "collect", "start_stage", "end_stage"]
+__all__ = ["execute_study", "RunMemo", "simulate_sample", "sample_row", "collect", "start_stage", "end_stage"]
