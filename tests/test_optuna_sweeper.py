@@ -178,3 +178,74 @@ def test_trials_compose_once_and_run_alike_through_the_joblib_launcher(tmp_path)
     ours, theirs = _load(pooled).trials, _load(basic).trials
     assert [t.params for t in ours] == [t.params for t in theirs]
     assert [t.value for t in ours] == pytest.approx([t.value for t in theirs], rel=1e-12)
+
+
+def _seeded_steps(study, storage_trials=None, n=6):
+    """Ask, suggest and tell ``n`` trials of a toy objective two at a time (as the sweeper's batches), recording
+    them through ``storage_trials`` (a StoredTrials) when given; returns the told parameters."""
+    told = []
+    for _ in range(n // 2):
+        trials = [study.ask() for _ in range(2)]
+        for t in trials:
+            t.suggest_float("x", -1.0, 1.0)
+            t.suggest_categorical("c", ["a", "b"])
+        if storage_trials is not None:
+            storage_trials.launched(trials)
+        for t in trials:
+            study.tell(t, (t.params["x"] - 0.3) ** 2 + (t.params["c"] == "b"))
+            if storage_trials is not None:
+                storage_trials.ended(t)
+            told.append(t.params)
+    return told
+
+
+def _stored(url):
+    return [(t.number, t.state.name, t.params, t.values, t.system_attrs)
+            for t in optuna.load_study(study_name="s", storage=url).trials]
+
+
+def test_stored_trials_record_what_optuna_would_have_stored(tmp_path):
+    """A study worked on in memory and recorded trial by trial (StoredTrials) leaves the storage as Optuna working
+    on the storage itself leaves it: the same trials, numbers, parameters, values and enqueued trials, resumed
+    alike from a study with complete, enqueued and stale RUNNING trials; while a batch runs, the storage holds its
+    trials RUNNING with their parameters."""
+    from optuna.samplers import TPESampler
+
+    from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import StoredTrials
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+
+    def start(url):  # two complete trials, one left RUNNING by a killed session, one enqueued
+        study = optuna.create_study(study_name="s", storage=url, sampler=TPESampler(seed=1))
+        _seeded_steps(study, n=2)
+        study.ask().suggest_float("x", -1.0, 1.0)
+        study.enqueue_trial({"x": 0.25, "c": "b"})
+
+    direct, recorded = f"sqlite:///{tmp_path / 'direct.db'}", f"sqlite:///{tmp_path / 'recorded.db'}"
+    start(direct)
+    start(recorded)
+    a = _seeded_steps(optuna.load_study(study_name="s", storage=direct, sampler=TPESampler(seed=7)))
+    stored = StoredTrials(recorded, "s", TPESampler(seed=7), ["minimize"])
+    b = _seeded_steps(stored.study, stored)
+    assert a == b and a[0] == {"x": 0.25, "c": "b"}
+    assert _stored(direct) == _stored(recorded)
+    assert [s for _, s, *_ in _stored(recorded)] == ["COMPLETE"] * 2 + ["RUNNING"] + ["COMPLETE"] * 6
+    # a batch launched and not yet ended is in the storage, RUNNING, with its parameters
+    trial = stored.study.ask()
+    trial.suggest_float("x", -1.0, 1.0)
+    stored.launched([trial])
+    last = optuna.load_study(study_name="s", storage=recorded).trials[-1]
+    assert (last.number, last.state.name, last.params) == (trial.number, "RUNNING", trial.params)
+
+
+def test_stored_trials_refuse_a_study_another_process_writes_into(tmp_path):
+    from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import StoredTrials
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    url = f"sqlite:///{tmp_path / 'study.db'}"
+    stored = StoredTrials(url, "s", optuna.samplers.RandomSampler(seed=0), ["minimize"])
+    optuna.load_study(study_name="s", storage=url).ask()  # another process's trial 0
+    trial = stored.study.ask()
+    trial.suggest_float("x", 0.0, 1.0)
+    with pytest.raises(RuntimeError, match="another process"):
+        stored.launched([trial])

@@ -22,6 +22,14 @@ public ask-and-tell API, after the behaviour of Hydra's ``hydra-optuna-sweeper``
 Differences: a trial's parameters are suggested with ``trial.suggest_*`` (no private Optuna API), the launcher's
 job numbers are the Optuna trial numbers (unique across resumed sessions), and the sampler configs are those of
 Optuna >= 4 (:mod:`.config`).
+
+A study in a storage is worked on in memory and recorded in the storage as it goes (:class:`StoredTrials`): the
+sampler asks and is told in an in-memory copy of the stored study, and each trial is written to the storage twice,
+in one transaction each: when it is launched (RUNNING, with its parameters) and when it ends (its state and
+values). Optuna writes each suggested parameter in a transaction of its own: 2.3 ms each in SQLite, 7 s of the
+sensitivity study's calibration (128 trials of 24 parameters), with the launcher's workers idle. The storage holds
+what it held before at every trial's start and end, with the same numbers; a killed sweep leaves its running
+trials RUNNING, as before.
 """
 
 from __future__ import annotations
@@ -40,6 +48,57 @@ from ._space import Dimension, directions, objective_values, search_space
 log = logging.getLogger(__name__)
 
 RESULTS_FILE = "optimization_results.yaml"
+
+
+class StoredTrials:
+    """A study kept in a storage (an Optuna RDB URL) and worked on in an in-memory copy (module docstring).
+
+    :attr:`study` is the in-memory study: the stored study's trials, in order, then the trials asked of it.
+    :meth:`launched` records asked trials in the storage (RUNNING, with their parameters; an enqueued trial the
+    copy took from the storage's WAITING ones is that trial, updated), :meth:`ended` records their state and values.
+    The storage's trial numbers are the copy's: a trial numbered otherwise there (another process wrote into the
+    same study) stops the sweep."""
+
+    def __init__(self, url: str, study_name: Optional[str], sampler: Any, directions: List[str]) -> None:
+        import optuna
+
+        self.storage = optuna.storages.RDBStorage(url)
+        stored = optuna.create_study(study_name=study_name, storage=self.storage, directions=directions,
+                                     load_if_exists=True)
+        self.study_id = self.storage.get_study_id_from_name(stored.study_name)
+        self.study = optuna.create_study(study_name=stored.study_name, sampler=sampler, directions=directions)
+        copied = stored.get_trials(deepcopy=False)
+        self.study.add_trials(copied)
+        #: trials the storage holds as WAITING (enqueued): number -> stored id, updated when the copy asks them
+        self._waiting = {t.number: self.storage.get_trial_id_from_study_id_trial_number(self.study_id, t.number)
+                         for t in copied if t.state == optuna.trial.TrialState.WAITING}
+        self._ids: Dict[int, int] = {}
+
+    def launched(self, trials) -> None:
+        """Record asked trials (:class:`optuna.Trial` of :attr:`study`, their parameters suggested) as RUNNING."""
+        from optuna.trial import TrialState
+
+        frozen = self.study.get_trials(deepcopy=False)
+        for trial in trials:
+            t = frozen[trial.number]
+            if t.number in self._waiting:
+                trial_id = self._waiting.pop(t.number)
+                self.storage.set_trial_state_values(trial_id, TrialState.RUNNING)
+                for name, value in t.params.items():
+                    dist = t.distributions[name]
+                    self.storage.set_trial_param(trial_id, name, dist.to_internal_repr(value), dist)
+            else:
+                trial_id = self.storage.create_new_trial(self.study_id, template_trial=t)
+            number = self.storage.get_trial_number_from_id(trial_id)
+            if number != t.number:
+                raise RuntimeError(f"Optuna study {self.study.study_name}: trial {t.number} was stored as trial "
+                                   f"{number}; another process is writing into the same study")
+            self._ids[t.number] = trial_id
+
+    def ended(self, trial) -> None:
+        """Record a told trial's state and values."""
+        t = self.study.get_trials(deepcopy=False)[trial.number]
+        self.storage.set_trial_state_values(self._ids.pop(t.number), t.state, t.values)
 
 
 class DdmrOptunaSweeper(Sweeper):
@@ -108,8 +167,13 @@ class DdmrOptunaSweeper(Sweeper):
         params = [f"{k}={v}" for k, v in (OmegaConf.to_container(self.params) if isinstance(self.params, DictConfig)
                                           else (self.params or {})).items()]
         dims, fixed = search_space([*params, *arguments])
-        study = optuna.create_study(study_name=self.study_name, storage=self.storage, sampler=self._sampler(dims),
-                                    directions=self.directions, load_if_exists=True)
+        stored = None
+        if self.storage is None:
+            study = optuna.create_study(study_name=self.study_name, sampler=self._sampler(dims),
+                                        directions=self.directions)
+        else:
+            stored = StoredTrials(self.storage, self.study_name, self._sampler(dims), self.directions)
+            study = stored.study
         log.info("Optuna study %s (%s, %s, %s): %d trials in batches of %d", study.study_name, self.storage or "memory",
                  type(study.sampler).__name__, ", ".join(self.directions), self.n_trials, self.n_jobs)
         to_go = self.n_trials
@@ -119,6 +183,8 @@ class DdmrOptunaSweeper(Sweeper):
             # as Hydra's sweepers: every trial's config composes before any runs (a bad override stops the sweep
             # here); the composition the trials share is then made here, once, and travels to the launcher's workers
             self.validate_batch_is_legal(overrides)
+            if stored is not None:
+                stored.launched(trials)
             returns = self.launcher.launch(overrides, initial_job_idx=trials[0].number)
             failures = 0
             for trial, ret in zip(trials, returns):
@@ -128,12 +194,14 @@ class DdmrOptunaSweeper(Sweeper):
                     study.tell(trial, state=optuna.trial.TrialState.FAIL)
                     log.warning("trial %d failed: %s", trial.number, exc)
                     failures += 1
-                    continue
-                try:
-                    study.tell(trial, values)
-                except RuntimeError as exc:  # the grid sampler's Study.stop once the grid is done: told, then raised
-                    if "Study.stop" not in str(exc):
-                        raise
+                else:
+                    try:
+                        study.tell(trial, values)
+                    except RuntimeError as exc:  # the grid sampler's Study.stop once the grid is done: told, raised
+                        if "Study.stop" not in str(exc):
+                            raise
+                if stored is not None:
+                    stored.ended(trial)
             if failures / len(returns) > self.max_failure_rate:
                 log.error("%d of %d trials failed (hydra.sweeper.max_failure_rate=%g)", failures, len(returns),
                           self.max_failure_rate)
@@ -158,4 +226,4 @@ class DdmrOptunaSweeper(Sweeper):
         OmegaConf.save(OmegaConf.create(results), f"{self.config.hydra.sweep.dir}/{RESULTS_FILE}")
 
 
-__all__ = ["DdmrOptunaSweeper", "RESULTS_FILE"]
+__all__ = ["DdmrOptunaSweeper", "RESULTS_FILE", "StoredTrials"]
