@@ -297,3 +297,35 @@ def test_the_controller_slot_is_the_only_substitution():
     assert len(differ) == 5
     slot_lines = [b for a, b in differ if "controller_slot" in a]
     assert len(slot_lines) == 4 and all(b.startswith("from ddmr_cli.control.smc import ") for b in slot_lines[:1])
+
+
+@pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; tests/test_fallback.py covers its absence")
+def test_the_step_loop_is_compiled_without_reference_counting_and_refuses_to_allocate(tmp_path, monkeypatch):
+    """The generated copies of the step loop are compiled by :func:`ddmr_cli.compiled.loop_law`, without numba's
+    atomic reference counting (``_nrt=False``), which cost the loop about 40 % of its time; a function that
+    allocates cannot compile so (an error, never a loop that frees what it should not)."""
+    import numpy as np
+
+    from ddmr_cli.compiled import law, loop_law
+    from ddmr_cli.config.presets import paper_simulation
+    from ddmr_cli.engine import kernels
+    from ddmr_cli.engine.simulation import simulate
+
+    monkeypatch.setenv("DDMR_CACHE_DIR", str(tmp_path))
+    simulate(paper_simulation("controller=pid", "simulation.duration=0.01"), [0])
+    copies = [m for name, m in sys.modules.items() if name.startswith("ddmr_stepper_ddmr_cli_control_pid_")]
+    assert copies and all(m.run_chunk.targetoptions.get("_nrt") is False for m in copies)
+    assert "import loop_law as law" in kernels._source_for("ddmr_cli.control.pid")
+
+    source = tmp_path / "allocating.py"
+    source.write_text("import numpy as np\n\ndef fresh(n):\n    return np.zeros(n).sum()\n")
+    sys.path.insert(0, str(tmp_path))
+    try:
+        import allocating
+    finally:
+        sys.path.remove(str(tmp_path))
+    assert law(allocating.fresh)(3) == 0.0  # a law compiled with counting allocates
+    from numba.core.errors import TypingError
+
+    with pytest.raises(TypingError, match="zeros"):
+        loop_law(allocating.fresh)(3)

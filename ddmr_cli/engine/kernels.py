@@ -163,7 +163,7 @@ def _source_for(law_module: str) -> str:
 
     source, count = _LAW_IMPORT.subn(point, template)
     # the copy's own functions are cached on disk (its name holds the hash of every law it inlines)
-    source, cached = re.subn(r"^from ddmr_cli\.compiled import law$", "from ddmr_cli.compiled import cached_law as law",
+    source, cached = re.subn(r"^from ddmr_cli\.compiled import law$", "from ddmr_cli.compiled import loop_law as law",
                              source, flags=re.MULTILINE)
     if count != 4 or cached != 1:
         raise RuntimeError(f"{_TEMPLATE_MODULE}: expected 4 controller-law imports and 1 law import to replace, "
