@@ -96,8 +96,21 @@ def loop_law(fn):
     arguments of the laws numba inlines). The loop allocates nothing, and every array it touches is owned by the
     Python caller for the whole call, so it needs no count: without it, 114 -> 70 ns per run and step (smc_ndo,
     50 runs, one core), 221 -> 158 (smc_ndo_nno), the same numbers to the bit. ``_nrt`` is numba's own option
-    (its tests use it); a law that allocates fails to compile in the loop, not silently."""
-    return cached_law(fn, _nrt=False)
+    (its tests use it); a law that allocates fails to compile in the loop, not silently. A numba without the
+    option (:func:`without_counting`) compiles the loop with counting: slower, the same numbers."""
+    return cached_law(fn, **without_counting())
+
+
+def without_counting() -> dict:
+    """numba's option that compiles a function without reference counting (``{"_nrt": False}``), or ``{}`` for a
+    numba that no longer has it (every release since numba 0.4x does; it is not public API, so this asks
+    numba's own table of options rather than fail at the first compile)."""
+    try:
+        from numba.core.cpu import CPUTargetOptions
+        from numba.core.options import TargetOptions
+    except ImportError:
+        return {}
+    return {"_nrt": False} if isinstance(getattr(CPUTargetOptions, "_nrt", None), TargetOptions.Mapping) else {}
 
 
 def plain(fn):
@@ -121,4 +134,4 @@ def thread_count(n: int) -> int:
     return max(1, int(n) if n else cores)
 
 
-__all__ = ["AVAILABLE", "cached_law", "inlined_law", "jit_enabled", "law", "loop_law", "plain", "thread_count"]
+__all__ = ["AVAILABLE", "cached_law", "inlined_law", "jit_enabled", "law", "loop_law", "plain", "thread_count", "without_counting"]

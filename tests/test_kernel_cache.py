@@ -329,3 +329,16 @@ def test_the_step_loop_is_compiled_without_reference_counting_and_refuses_to_all
 
     with pytest.raises(TypingError, match="zeros"):
         loop_law(allocating.fresh)(3)
+
+
+@pytest.mark.skipif(not AVAILABLE, reason="numba is a dependency; tests/test_fallback.py covers its absence")
+def test_a_numba_without_the_option_compiles_the_loop_with_counting(monkeypatch):
+    """``_nrt`` is not numba's public API: where a numba lacks it, the loop compiles with counting instead of failing
+    at its first compile."""
+    from numba.core.cpu import CPUTargetOptions
+
+    from ddmr_cli.compiled import without_counting
+
+    assert without_counting() == {"_nrt": False}
+    monkeypatch.setattr(CPUTargetOptions, "_nrt", None, raising=False)  # a numba whose table lacks it
+    assert without_counting() == {}
