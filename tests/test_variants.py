@@ -12,7 +12,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from ddmr_cli.config import compose_config, validate_config
-from ddmr_cli.config.variants import Variants, with_values
+from ddmr_cli.config.variants import BuiltParts, Variants, with_values
 from ddmr_cli.engine.simulation import simulate
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.study.setup import study_configs, study_models
@@ -105,6 +105,29 @@ def test_a_variant_shares_the_untouched_parts_and_leaves_them_as_they_were(varia
     again = simulate(base.simulation, [5, 6], bands=False, threads=1)
     for metric in ("deviation_mae", "d_est_mae", "chattering"):
         np.testing.assert_array_equal(first.metric(metric), again.metric(metric))
+
+
+def test_configs_sharing_built_parts_get_each_its_own_simulation(study_cfg, box):
+    """Configs that keep their built sections in one :class:`BuiltParts` (a study job's) get, for every reading,
+    the simulation each builds alone: a section is reused across configs only where it is the same section with
+    the same values (the robot, terrain and step sections of one sample), never another controller's."""
+    configs = study_configs(study_cfg)
+    keys = [("smc_ndo_nno", "paper_1"), ("smc_ndo", "paper_1"), ("pid", "paper_2"), ("smc_ndo", "paper_2")]
+    parts = BuiltParts()
+    shared = {key: Variants(configs[key], parts) for key in keys}
+    alone = {key: Variants(configs[key]) for key in keys}
+    readings = [{name: value} for name, value in _readings(box)]
+    readings.append({p.name: (p.options[-1] if p.is_choice else p.high) for p in box.parameters})  # every key
+    for reading in readings:
+        for key in keys:
+            values = box.key_values(reading, configs[key])
+            if values:
+                _same_simulation(shared[key].simulation_with(values), alone[key].simulation_with(values))
+    assert parts.reused >= 20  # the configs' common sections were built once
+    values = {"robot.max_voltage": 18.0, "controller.lam": [3.0, 3.0]}
+    first = shared[keys[1]].simulation_with(values)
+    again = shared[keys[3]].simulation_with(values)  # the same controller section in the other scenario
+    assert again.robot is first.robot and again.controller is first.controller
 
 
 @pytest.mark.parametrize("values", [{"robot.max_voltage": -1.0}, {"controller.nn.width": 0.0},

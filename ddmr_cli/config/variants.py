@@ -9,6 +9,12 @@ there (with the config's types and struct checks), rebuilds the model parts buil
 (:func:`~ddmr_cli.config.validate.check_simulation`). The result is the simulation the full path would give,
 with the same refusals (tests/test_variants.py compares both for every parameter of the default study).
 
+The model parts a section builds with a reading's values are kept (:class:`BuiltParts`, shared by a study job's
+configs): the configs of one sample share their robot, terrain and step sections, and a Morris trajectory or a
+Sobol matrix moves one parameter at a time, so most sections of a sample were built before with the same values.
+A part is reused only for the same section (its schema type and content) and the same values, by type and bits
+(:func:`values_key`).
+
 The full path (the whole config copied, validated and built: :func:`with_values` then
 :func:`~ddmr_cli.config.validate.validate_config`) is taken for a key outside those sections (``run.*``,
 ``plant.*``), a key naming a class (``_target_``) or a controller's ``display``, and for a config whose model
@@ -19,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
 from typing import Any, Mapping
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -71,6 +78,31 @@ def values_key(values: Mapping[str, Any]) -> tuple:
     return tuple((key, frozen(value)) for key, value in values.items())
 
 
+class BuiltParts:
+    """The Simulation fields built from config sections with some values set, kept by (section, its schema type and
+    content, the values): shared by the :class:`Variants` of a study job, at most ``size`` of them (the oldest go
+    first). A section builds from its own node alone (:data:`~ddmr_cli.config.build.SECTION_BUILDERS`), and its
+    parts are not changed after they are built (the base simulation's are shared the same way), so equal keys give
+    equal parts."""
+
+    def __init__(self, size: int = 1024) -> None:
+        self.size = size
+        self._parts: dict[tuple, dict[str, Any]] = {}
+        #: how many sections were not built again
+        self.reused = 0
+
+    def get(self, key: tuple) -> dict[str, Any] | None:
+        found = self._parts.get(key)
+        if found is not None:
+            self.reused += 1
+        return found
+
+    def put(self, key: tuple, parts: dict[str, Any]) -> None:
+        if len(self._parts) >= self.size:
+            del self._parts[next(iter(self._parts))]
+        self._parts[key] = parts
+
+
 class Variants:
     """A config validated and built once (:attr:`simulation`), and :meth:`simulation_with` changed values.
 
@@ -78,12 +110,17 @@ class Variants:
     ----------
     cfg : DictConfig
         A composed config (as :func:`~ddmr_cli.config.validate.validate_config` takes it; not changed).
+    parts : BuiltParts, optional
+        Where sections built with a reading's values are kept (shared by the configs of a study job); none: every
+        changed section is built for every reading.
     """
 
-    def __init__(self, cfg: DictConfig) -> None:
+    def __init__(self, cfg: DictConfig, parts: BuiltParts | None = None) -> None:
         self.cfg = cfg
         self.simulation = validate_config(cfg)
+        self.parts = parts
         self._values: dict[str, Any] = {}
+        self._sections: dict[str, str] = {}
         #: False when a value the simulation is built or checked from is an interpolation: a changed value could
         #: flow into another section, and every change takes the full path
         self.in_place = not any(_interpolated(cfg.get(name)) for name in (*SECTION_BUILDERS, *CHECKED))
@@ -118,17 +155,41 @@ class Variants:
         values = self.changes(values)
         if not all(self._in_place(key) for key in values):
             return validate_config(with_values(self.cfg, values))
-        sections: dict[str, DictConfig] = {}
+        by_section: dict[str, dict[str, Any]] = {}
         for key, value in values.items():
             name, _, rest = key.partition(".")
-            if name not in sections:
-                sections[name] = copy.deepcopy(self.cfg[name])  # keeps its schema's types and struct flag
-            OmegaConf.update(sections[name], rest, value, merge=False)
-        if not sections:
+            by_section.setdefault(name, {})[rest] = value
+        if not by_section:
             return self.simulation
-        sim = dataclasses.replace(self.simulation, **build_parts(sections))
+        parts: dict[str, Any] = {}
+        for name in SECTION_BUILDERS:  # in the builders' order, as validate_config refuses
+            if name in by_section:
+                parts.update(self._built(name, by_section[name]))
+        sim = dataclasses.replace(self.simulation, **parts)
         check_simulation(self.cfg, sim)
         return sim
 
+    def _section(self, name: str) -> str:
+        """What section ``name`` builds from: its schema type and its content (each section read once)."""
+        if name not in self._sections:
+            node = self.cfg[name]
+            content = f"{OmegaConf.get_type(node)!r}\n{OmegaConf.to_yaml(node)}"
+            self._sections[name] = hashlib.sha256(content.encode()).hexdigest()
+        return self._sections[name]
 
-__all__ = ["Variants", "values_key", "with_values"]
+    def _built(self, name: str, values: dict[str, Any]) -> dict[str, Any]:
+        """The Simulation fields section ``name`` builds with ``values`` (key within the section -> value) set, in
+        their order, on a copy of it (:attr:`parts` keeps them)."""
+        key = (name, self._section(name), values_key(values)) if self.parts is not None else None
+        found = self.parts.get(key) if key is not None else None
+        if found is None:
+            node = copy.deepcopy(self.cfg[name])  # keeps its schema's types and struct flag
+            for rest, value in values.items():
+                OmegaConf.update(node, rest, value, merge=False)
+            found = build_parts({name: node})
+            if key is not None:
+                self.parts.put(key, found)
+        return found
+
+
+__all__ = ["BuiltParts", "Variants", "values_key", "with_values"]

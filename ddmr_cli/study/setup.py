@@ -48,11 +48,12 @@ JOB_SETTINGS = ("chunk", "reading")
 
 @lru_cache(maxsize=2)
 def _built(keyed: Keyed) -> tuple[Box, dict[tuple[str, str], Variants], dict[str, Any]]:
-    from ddmr_cli.config.variants import Variants
+    from ddmr_cli.config.variants import BuiltParts, Variants
 
     box = Box.from_config(keyed.value.study)
     configs = study_configs(keyed.value)
-    variants = {key: Variants(one) for key, one in configs.items()}
+    parts = BuiltParts()  # the configs share the sections they build alike
+    variants = {key: Variants(one, parts) for key, one in configs.items()}
     return box, variants, box.faithful_across(list(configs.values()))
 
 
