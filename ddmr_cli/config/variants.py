@@ -33,6 +33,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from ddmr_cli.config.build import SECTION_BUILDERS, build_parts
 from ddmr_cli.config.display import DISPLAY
 from ddmr_cli.config.validate import check_simulation, validate_config
+from ddmr_cli.keyed import Kept
 
 
 #: the sections :func:`~ddmr_cli.config.validate.check_simulation` reads besides the model's (kept as they are)
@@ -78,29 +79,15 @@ def values_key(values: Mapping[str, Any]) -> tuple:
     return tuple((key, frozen(value)) for key, value in values.items())
 
 
-class BuiltParts:
+class BuiltParts(Kept):
     """The Simulation fields built from config sections with some values set, kept by (section, its schema type and
     content, the values): shared by the :class:`Variants` of a study job, at most ``size`` of them (the oldest go
-    first). A section builds from its own node alone (:data:`~ddmr_cli.config.build.SECTION_BUILDERS`), and its
-    parts are not changed after they are built (the base simulation's are shared the same way), so equal keys give
-    equal parts."""
+    first; ``reused`` counts the sections not built again). A section builds from its own node alone
+    (:data:`~ddmr_cli.config.build.SECTION_BUILDERS`), and its parts are not changed after they are built (the
+    base simulation's are shared the same way), so equal keys give equal parts."""
 
     def __init__(self, size: int = 1024) -> None:
-        self.size = size
-        self._parts: dict[tuple, dict[str, Any]] = {}
-        #: how many sections were not built again
-        self.reused = 0
-
-    def get(self, key: tuple) -> dict[str, Any] | None:
-        found = self._parts.get(key)
-        if found is not None:
-            self.reused += 1
-        return found
-
-    def put(self, key: tuple, parts: dict[str, Any]) -> None:
-        if len(self._parts) >= self.size:
-            del self._parts[next(iter(self._parts))]
-        self._parts[key] = parts
+        super().__init__(size)
 
 
 class Variants:

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from omegaconf import DictConfig
 
+from ddmr_cli.keyed import Kept
 from ddmr_cli.storage import io, jobdir
 from ddmr_cli.storage.sweep import read_state
 from ddmr_cli.study import claims as claim_stats
@@ -37,7 +38,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("ddmr")
 
-class RunMemo:
+class RunMemo(Kept):
     """The per-seed metrics of every (controller, scenario) a study job has simulated, by the values its sample set
     on that config (:meth:`~ddmr_cli.config.variants.Variants.changes`, :func:`~ddmr_cli.config.variants.values_key`).
 
@@ -45,26 +46,17 @@ class RunMemo:
     earlier sample left it (a network parameter for a controller without a network, a map of the network's plane
     for the three others, an OAT curve's faithful point) gives that config's earlier numbers, to the bit, without
     simulating it again. Keys compare values by their bits (a no-op when they differ); at most ``size`` configs
-    are kept, the oldest dropped first. The arrays kept are copies, read-only."""
+    are kept, the oldest dropped first. The arrays kept are copies, read-only; ``reused`` counts runs."""
 
     def __init__(self, seeds: list[int], size: int = 4096) -> None:
-        self.seeds, self.size = tuple(seeds), size
-        self._runs: dict[tuple, tuple[dict, int]] = {}
-        self.reused = 0
+        super().__init__(size, weight=len(seeds))
+        self.seeds = tuple(seeds)
 
-    def get(self, key: tuple) -> tuple[dict, int] | None:
-        found = self._runs.get(key)
-        if found is not None:
-            self.reused += len(self.seeds)
-        return found
-
-    def put(self, key: tuple, metrics: dict, diverged: int) -> tuple[dict, int]:
+    def put(self, key: tuple, value: tuple[dict, int]) -> None:
+        metrics, _ = value
         for values in metrics.values():
             values.setflags(write=False)
-        if len(self._runs) >= self.size:
-            del self._runs[next(iter(self._runs))]
-        self._runs[key] = (metrics, diverged)
-        return metrics, diverged
+        super().put(key, value)
 
 
 def simulate_sample(box: Box, configs: dict[tuple[str, str], Variants], sample: dict, seeds: list[int],
@@ -86,7 +78,7 @@ def simulate_sample(box: Box, configs: dict[tuple[str, str], Variants], sample: 
             result = simulate(base.simulation_with(values), seeds, bands=False, threads=threads)
             found = ({m: result.metric(m).copy() for m in claim_stats.METRICS}, int(result.diverged.sum()))
             if memo is not None:
-                memo.put(memo_key, *found)
+                memo.put(memo_key, found)
         runs[key] = found[0]
         n += len(seeds)
         diverged += found[1]
