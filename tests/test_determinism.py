@@ -243,31 +243,39 @@ def test_noise_drawn_by_blocks_of_runs_is_the_noise_drawn_at_once():
 
 
 def test_the_compiled_draw_is_numpys_stream():
-    """``standard_normals`` (numba's Generator, what the engine draws with) gives numpy's own
-    ``standard_normal(out=...)`` stream of each seed, 600,000 normals each (the ziggurat's rare tail and wedge
-    branches included), and leaves the generator where numpy's draw leaves it."""
-    from ddmr_cli.compiled import jit_enabled
-    from ddmr_cli.model.noise import standard_normals
+    """``standard_normals_of`` (numba's ziggurat on each generator's bit generator, found by address; what the
+    engine draws with) gives numpy's own ``standard_normal(out=...)`` stream of each seed, 600,000 normals each
+    (the ziggurat's rare tail and wedge branches included), for the runs of the block it is given only, and
+    leaves each generator where numpy's draw leaves it."""
+    from ddmr_cli import bit_generators
 
-    assert jit_enabled(), "numba is a dependency: the engine draws compiled"
-    for seed in (0, 7, 12345):
-        ours, numpys = np.random.default_rng(seed), np.random.default_rng(seed)
-        a, b = np.empty((200_000, 3)), np.empty((200_000, 3))
-        standard_normals(ours, a)
-        numpys.standard_normal(out=b)
-        np.testing.assert_allclose(a, b, rtol=1e-15, atol=0)  # the same numbers (to the last bit on one machine)
-        assert ours.bit_generator.state == numpys.bit_generator.state
-        assert abs(a).max() > 4.0  # the draw reached the ziggurat's tail
+    assert bit_generators.drawn_compiled(), "numba is a dependency: the engine draws compiled"
+    seeds = (0, 7, 12345, 99)
+    ours = [np.random.default_rng(seed) for seed in seeds]
+    drawn = np.zeros((len(seeds), 200_000, 3))
+    bit_generators.standard_normals_of(bit_generators.addresses(ours), drawn, 1, 4)  # the block of runs 1..3
+    assert not drawn[0].any() and ours[0].bit_generator.state == np.random.default_rng(seeds[0]).bit_generator.state
+    for run in (1, 2, 3):
+        numpys = np.random.default_rng(seeds[run])
+        expected = numpys.standard_normal((200_000, 3))
+        np.testing.assert_allclose(drawn[run], expected, rtol=1e-15, atol=0)  # the same numbers (to the bit here)
+        assert ours[run].bit_generator.state == numpys.bit_generator.state
+        assert abs(drawn[run]).max() > 4.0  # the draw reached the ziggurat's tail
 
 
-def test_noise_streams_are_numpys_on_both_sides_of_the_compiled_draw():
-    """Chunks shorter than COMPILED_DRAW_MIN_STEPS are drawn by numpy, longer ones compiled: a run's stream is
-    numpy's own either way, in any mix of chunk sizes."""
-    from ddmr_cli.model.noise import COMPILED_DRAW_MIN_STEPS, NoiseStreams
+def test_noise_streams_are_numpys_in_any_chunking():
+    """A run's stream is numpy's own whatever the chunk sizes and blocks it is drawn in, and numpy's own draw
+    (what runs without numba) continues it where the compiled one stopped."""
+    from ddmr_cli.model.noise import NoiseStreams
 
-    sizes = [7, COMPILED_DRAW_MIN_STEPS, 3, 2 * COMPILED_DRAW_MIN_STEPS + 1, COMPILED_DRAW_MIN_STEPS - 1]
-    streams = NoiseStreams([3, 4])
-    drawn = np.concatenate([streams.next_chunk(n) for n in sizes], axis=1)
-    for run, seed in enumerate((3, 4)):
-        expected = np.random.default_rng(seed).standard_normal((sum(sizes), NoiseStreams.channels))
-        np.testing.assert_allclose(drawn[run], expected, rtol=1e-15, atol=0)
+    sizes = [7, 512, 1, 1025, 64]
+    streams = NoiseStreams([3, 4, 5])
+    drawn = [streams.next_chunk(n) for n in sizes]
+    blocks = np.empty((3, 9, NoiseStreams.channels))
+    streams.next_chunk(9, blocks, (2, 3))
+    streams.next_chunk(9, blocks, (0, 2))
+    drawn = np.concatenate(drawn + [blocks], axis=1)
+    tail = [g.standard_normal((5, NoiseStreams.channels)) for g in streams.generators]
+    for run, seed in enumerate((3, 4, 5)):
+        expected = np.random.default_rng(seed).standard_normal((sum(sizes) + 9 + 5, NoiseStreams.channels))
+        np.testing.assert_allclose(np.concatenate([drawn[run], tail[run]]), expected, rtol=1e-15, atol=0)

@@ -14,7 +14,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ddmr_cli.compiled import cached_law, jit_enabled, law
+from ddmr_cli import bit_generators
+from ddmr_cli.compiled import law
 
 #: noise channels per run and step
 CHANNELS = ("roughness_right", "roughness_left", "uncertainty")
@@ -33,25 +34,6 @@ def ou_step(a, b, n, xi):
     return b * xi + a * n
 
 
-@cached_law
-def standard_normals(generator, out):
-    """Fill the 2-D C-ordered ``out`` with ``generator``'s next standard normals, row by row: the numbers, and the
-    generator's state after them, of numpy's ``generator.standard_normal(out=out)``. Compiled, numba's own
-    ``Generator`` support draws from the same bit generator by the same ziggurat at 3.9 ns a normal against
-    numpy's 9.6 (measured here); it calls no other law, so numba's on-disk cache of it is safe
-    (:mod:`ddmr_cli.compiled`)."""
-    for i in range(out.shape[0]):
-        for j in range(out.shape[1]):
-            out[i, j] = generator.standard_normal()
-
-
-#: chunks of at least this many steps a run are drawn by :func:`standard_normals`, shorter ones by numpy (the same
-#: numbers): a compiled call costs about 6.5 us before its first draw (numba unboxes the Generator) against
-#: numpy's 0.4 us, and saves 5.7 ns a normal, so it pays from about 300 steps (3 normals each); measured here,
-#: 1024 steps 15 against 28 us, 64 steps 7.0 against 2.2 us (a 10,000-run batch draws 64-step chunks)
-COMPILED_DRAW_MIN_STEPS = 512
-
-
 class NoiseStreams:
     """The standard normals of a batch of runs, one generator per run.
 
@@ -65,7 +47,12 @@ class NoiseStreams:
     channels = len(CHANNELS)
 
     def __init__(self, seeds: Sequence[int]) -> None:
-        self.generators = [np.random.default_rng(int(s)) for s in seeds]
+        self._keep([np.random.default_rng(int(s)) for s in seeds])
+
+    def _keep(self, generators: list[np.random.Generator]) -> None:
+        self.generators = generators
+        #: where compiled code finds each generator's bit generator (:mod:`ddmr_cli.bit_generators`), or None
+        self._addresses = bit_generators.addresses(generators) if bit_generators.drawn_compiled() else None
 
     def initial_state(self) -> np.ndarray:
         """The OU processes' state before the first step, drawn from N(0, 1): shape ``(n_runs, 3)``."""
@@ -79,17 +66,16 @@ class NoiseStreams:
         """The next ``n_steps`` normals per run and channel, run-major: shape ``(n_runs, n_steps, channels)``.
 
         ``runs=(first, end)`` draws for those runs only, into their rows of ``out`` (which must then have the
-        shape): the engine's worker threads each draw their own block (numpy releases the GIL while it fills),
-        and a run's numbers are the same whichever thread draws them."""
+        shape): the engine's worker threads each draw their own block (one compiled call that releases the GIL;
+        numpy's own draw where numba is missing), and a run's numbers are the same whichever thread draws them."""
         shape = (len(self.generators), n_steps, self.channels)
         if out is None or out.shape != shape:
             if runs is not None:
                 raise ValueError(f"out must have shape {shape} to be filled by blocks of runs")
             out = np.empty(shape)
         first, end = runs if runs is not None else (0, len(self.generators))
-        if jit_enabled() and n_steps >= COMPILED_DRAW_MIN_STEPS:  # the same numbers, drawn compiled
-            for i in range(first, end):
-                standard_normals(self.generators[i], out[i])
+        if self._addresses is not None:  # one compiled call for the block, the GIL released: the same numbers
+            bit_generators.standard_normals_of(self._addresses, out, first, end)
         else:
             for i in range(first, end):
                 self.generators[i].standard_normal(out=out[i])
@@ -109,5 +95,5 @@ class SensorNoise(NoiseStreams):
 
     def __init__(self, seeds: Sequence[int], channels: int) -> None:
         self.channels = int(channels)
-        self.generators = [np.random.default_rng(np.random.SeedSequence(int(s), spawn_key=(SENSOR_STREAM,)))
-                           for s in seeds]
+        self._keep([np.random.default_rng(np.random.SeedSequence(int(s), spawn_key=(SENSOR_STREAM,)))
+                    for s in seeds])
