@@ -279,3 +279,15 @@ def test_noise_streams_are_numpys_in_any_chunking():
     for run, seed in enumerate((3, 4, 5)):
         expected = np.random.default_rng(seed).standard_normal((sum(sizes) + 9 + 5, NoiseStreams.channels))
         np.testing.assert_allclose(np.concatenate([drawn[run], tail[run]]), expected, rtol=1e-15, atol=0)
+
+
+def test_without_the_compiled_draw_numpy_draws_the_same_numbers(monkeypatch):
+    """Where numba lacks the parts the compiled draw builds on (or numba is off), numpy draws: the same streams."""
+    from ddmr_cli import bit_generators
+    from ddmr_cli.model.noise import NoiseStreams
+
+    compiled = NoiseStreams([11, 12]).next_chunk(300)
+    monkeypatch.setattr(bit_generators, "AVAILABLE", False)
+    streams = NoiseStreams([11, 12])
+    assert streams._addresses is None
+    np.testing.assert_allclose(streams.next_chunk(300), compiled, rtol=1e-15, atol=0)
