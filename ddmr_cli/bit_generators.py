@@ -2,8 +2,8 @@
 
 numba can take a ``numpy.random.Generator`` as an argument and draws numpy's own streams from it, but it unboxes
 the generator at every call (its bit generator's ``ctypes`` interface, four ``ctypes.cast`` calls: 6.5-15 us
-with the GIL held, against 0.6 us for a call here). A block of runs drawn one run per call paid that for every run of every chunk, and two worker
-threads queued on the GIL for it. Here each generator's ``bitgen_t`` (numpy's C interface to a bit generator:
+with the GIL held, against 0.6 us for a call here). A block of runs drawn one run per call paid that for every run
+of every chunk, and two worker threads queued on the GIL for it. Here each generator's ``bitgen_t`` (numpy's C interface to a bit generator:
 its state and its ``next_uint64``, ``next_uint32``, ``next_double`` functions, in that order; numpy's
 ``numpy/random/bitgen.h``, the documented C API for extending ``numpy.random``) is found once, from the
 generator's ``capsule``, and compiled code builds numba's own bit-generator value from that address. numba's own
@@ -11,7 +11,7 @@ ziggurat (:func:`numba.np.random.distributions.random_standard_normal`, what ``G
 runs compiled) then draws the same numbers, and leaves the same state, as numpy's ``standard_normal``.
 
 Both numba names used here (the bit generator's data model and the ziggurat) are numba's internals: where a
-numba lacks them :data:`AVAILABLE` is False and the noise is drawn one generator per call as before (the same
+numba lacks them :data:`AVAILABLE` is False and numpy draws the noise, one generator per call (the same
 numbers). The addresses are valid while their generators live: the caller keeps the generators.
 """
 
