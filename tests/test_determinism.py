@@ -291,3 +291,23 @@ def test_without_the_compiled_draw_numpy_draws_the_same_numbers(monkeypatch):
     streams = NoiseStreams([11, 12])
     assert streams._addresses is None
     np.testing.assert_allclose(streams.next_chunk(300), compiled, rtol=1e-15, atol=0)
+
+
+@pytest.mark.parametrize("spawn_key", [(), (1,), (3, 7)])
+def test_generators_seeded_at_once_are_default_rngs(spawn_key):
+    """``bit_generators.generators`` (numpy's SeedSequence hash run for every seed at once) gives each seed the
+    generator ``default_rng(SeedSequence(seed, spawn_key=...))`` gives it: the same state and the same stream, for
+    small and one-word-edge seeds; seeds beyond one 32-bit word go through SeedSequence itself."""
+    from ddmr_cli import bit_generators
+
+    seeds = list(range(0, 3000, 7)) + [2**31, 2**32 - 1, 2**32, 2**40 + 5]
+    words = bit_generators.seed_words(seeds[:-2], spawn_key)
+    for i, seed in enumerate(seeds[:-2]):  # the hash itself: integers, compared exactly
+        assert words[i].tolist() == np.random.SeedSequence(seed, spawn_key=spawn_key).generate_state(
+            4, np.uint64).tolist(), seed
+    assert bit_generators.seed_words(seeds, spawn_key) is None  # a two-word seed: not hashed here
+    for made in (bit_generators.generators(seeds, spawn_key), bit_generators.generators(seeds[:-2], spawn_key)):
+        for seed, generator in zip(seeds, made):
+            numpys = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=spawn_key))
+            assert generator.bit_generator.state == numpys.bit_generator.state, seed
+            np.testing.assert_allclose(generator.standard_normal(4), numpys.standard_normal(4), rtol=1e-15, atol=0)

@@ -47,7 +47,7 @@ class NoiseStreams:
     channels = len(CHANNELS)
 
     def __init__(self, seeds: Sequence[int]) -> None:
-        self._keep([np.random.default_rng(int(s)) for s in seeds])
+        self._keep(bit_generators.generators(seeds))  # default_rng(seed) of each, seeded at once
 
     def _keep(self, generators: list[np.random.Generator]) -> None:
         self.generators = generators
@@ -55,11 +55,9 @@ class NoiseStreams:
         self._addresses = bit_generators.addresses(generators) if bit_generators.drawn_compiled() else None
 
     def initial_state(self) -> np.ndarray:
-        """The OU processes' state before the first step, drawn from N(0, 1): shape ``(n_runs, 3)``."""
-        out = np.empty((len(self.generators), len(CHANNELS)))
-        for i, rng in enumerate(self.generators):
-            rng.standard_normal(out=out[i])
-        return out
+        """The OU processes' state before the first step, drawn from N(0, 1): shape ``(n_runs, 3)`` (each run's
+        first three normals, drawn as a step's are)."""
+        return self.next_chunk(1)[:, 0, :]
 
     def next_chunk(self, n_steps: int, out: np.ndarray | None = None, runs: tuple[int, int] | None = None
                    ) -> np.ndarray:
@@ -95,5 +93,4 @@ class SensorNoise(NoiseStreams):
 
     def __init__(self, seeds: Sequence[int], channels: int) -> None:
         self.channels = int(channels)
-        self._keep([np.random.default_rng(np.random.SeedSequence(int(s), spawn_key=(SENSOR_STREAM,)))
-                    for s in seeds])
+        self._keep(bit_generators.generators(seeds, spawn_key=(SENSOR_STREAM,)))
