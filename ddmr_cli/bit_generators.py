@@ -13,10 +13,10 @@ and checked in each process before it is used) in about a fifth of the time.
 numba can take a ``numpy.random.Generator`` as an argument and draws numpy's own streams from it, but it unboxes
 the generator at every call (its bit generator's ``ctypes`` interface, four ``ctypes.cast`` calls: 6.5-15 us
 with the GIL held, against 0.6 us for a call here). A block of runs drawn one run per call paid that for every run
-of every chunk, and two worker threads queued on the GIL for it. Here each generator's ``bitgen_t`` (numpy's C interface to a bit generator:
-its state and its ``next_uint64``, ``next_uint32``, ``next_double`` functions, in that order; numpy's
-``numpy/random/bitgen.h``, the documented C API for extending ``numpy.random``) is found once, from the
-generator's ``capsule``, and compiled code builds numba's own bit-generator value from that address. numba's own
+of every chunk, and two worker threads queued on the GIL for it. Here each generator's ``bitgen_t`` (numpy's C
+interface to a bit generator: its state and its ``next_uint64``, ``next_uint32``, ``next_double`` functions, in that
+order; numpy's ``numpy/random/bitgen.h``, the documented C API for extending ``numpy.random``) is found once, from
+the generator's ``capsule``, and compiled code builds numba's own bit-generator value from that address. numba's own
 ziggurat (:func:`numba.np.random.distributions.random_standard_normal`, what ``Generator.standard_normal``
 runs compiled) then draws the same numbers, and leaves the same state, as numpy's ``standard_normal``.
 
@@ -149,7 +149,7 @@ def seed_words(seeds: Sequence[int], spawn_key: tuple[int, ...] = ()) -> np.ndar
     return words.astype("<u4").view("<u8").astype(np.uint64)
 
 
-class _SeedWords:
+class _SeedWords(np.random.bit_generator.ISeedSequence):
     """A seed sequence that hands ``PCG64`` words already hashed (numpy's ``ISeedSequence`` interface)."""
 
     __slots__ = ("words",)
@@ -162,8 +162,6 @@ class _SeedWords:
             raise ValueError(f"only PCG64's request (4 uint64 words) is kept, not {n_words} of {np.dtype(dtype)}")
         return self.words
 
-
-np.random.bit_generator.ISeedSequence.register(_SeedWords)
 
 
 @functools.lru_cache(maxsize=1)

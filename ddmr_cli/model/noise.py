@@ -41,18 +41,18 @@ class NoiseStreams:
     ----------
     seeds : sequence of int
         One per run.
+    spawn_key : tuple of int
+        numpy's ``SeedSequence`` spawn key of every run's stream (``()``: ``default_rng(seed)`` itself).
     """
 
     #: normals per run and step
     channels = len(CHANNELS)
 
-    def __init__(self, seeds: Sequence[int]) -> None:
-        self._keep(bit_generators.generators(seeds))  # default_rng(seed) of each, seeded at once
-
-    def _keep(self, generators: list[np.random.Generator]) -> None:
-        self.generators = generators
+    def __init__(self, seeds: Sequence[int], spawn_key: tuple[int, ...] = ()) -> None:
+        #: ``default_rng(SeedSequence(seed, spawn_key=spawn_key))`` of each seed, seeded at once
+        self.generators = bit_generators.generators(seeds, spawn_key)
         #: where compiled code finds each generator's bit generator (:mod:`ddmr_cli.bit_generators`), or None
-        self._addresses = bit_generators.addresses(generators) if bit_generators.drawn_compiled() else None
+        self._addresses = bit_generators.addresses(self.generators) if bit_generators.drawn_compiled() else None
 
     def initial_state(self) -> np.ndarray:
         """The OU processes' state before the first step, drawn from N(0, 1): shape ``(n_runs, 3)`` (each run's
@@ -93,4 +93,4 @@ class SensorNoise(NoiseStreams):
 
     def __init__(self, seeds: Sequence[int], channels: int) -> None:
         self.channels = int(channels)
-        self._keep(bit_generators.generators(seeds, spawn_key=(SENSOR_STREAM,)))
+        super().__init__(seeds, spawn_key=(SENSOR_STREAM,))
