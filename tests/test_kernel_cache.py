@@ -342,3 +342,57 @@ def test_a_numba_without_the_option_compiles_the_loop_with_counting(monkeypatch)
     assert without_counting() == {"_nrt": False}
     monkeypatch.setattr(CPUTargetOptions, "_nrt", None, raising=False)  # a numba whose table lacks it
     assert without_counting() == {}
+
+
+# --- other templates of the step loop's kind: the cost of a control step (ddmr_cli/bench/control_loop.py) -------
+
+def test_a_template_copy_runs_the_controllers_laws_and_is_loaded_from_disk(tmp_path):
+    """The cost loop's copy for a controller runs that controller's laws (not the slot's open loop), and a second
+    process loads it from the disk cache without compiling."""
+    script = textwrap.dedent("""
+        import json
+        from ddmr_cli import paper_controller, paper_robot
+        from ddmr_cli.bench.cost import CONTROL_LOOP, inputs
+        from ddmr_cli.engine.kernels import compiled_copy
+        from ddmr_cli.model.robot import NominalModel
+
+        pid = paper_controller("pid")
+        p = pid.law_parameters(NominalModel.from_robot(paper_robot()), 1e-3)
+        w, wd, wdd = inputs(50, 1e-3)
+        compiled = []
+        steps = compiled_copy(CONTROL_LOOP, pid.laws.__name__, "control_steps", (p, pid.initial_state(1), w, wd, wdd),
+                              lambda: compiled.append(True))
+        total = steps(p, pid.initial_state(1), w, wd, wdd)
+        st, expected = pid.initial_state(1)[0], 0.0  # the same loop in Python over pid's own laws
+        pid.laws.start(p, st, w[0, 0], w[0, 1])
+        for i in range(len(w)):
+            u_R, u_L = pid.laws.command(p, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
+            pid.laws.update(p, st, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], u_R, u_L, u_R, u_L, False, False)
+            expected += u_R + u_L
+        print(json.dumps({"compiled": bool(compiled), "total": total, "expected": expected,
+                          "module": steps.__module__}))
+    """)
+    env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path / "cache")}
+    runs = [json.loads(subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                                      check=True).stdout.strip().splitlines()[-1]) for _ in range(2)]
+    assert [r["compiled"] for r in runs] == [True, False]
+    for r in runs:
+        assert abs(r["total"]) > 1.0
+        assert r["total"] == pytest.approx(r["expected"], rel=1e-12, abs=1e-12)
+        assert r["module"].startswith("ddmr_control_loop_ddmr_cli_control_pid_")
+
+
+def test_a_template_must_take_its_laws_from_the_slot_in_the_form_replaced(tmp_path, monkeypatch):
+    """A template with another kind of import of the slot would keep the open loop's laws there: refused."""
+    from ddmr_cli.engine import kernels
+
+    copy = kernels._source_for("ddmr_cli.control.pid", "ddmr_cli.bench.control_loop")
+    assert "from ddmr_cli.control.pid import command as controller_command" in copy
+    assert "\nfrom ddmr_cli.engine.controller_slot" not in copy and "import loop_law as law" in copy
+    bad = tmp_path / "bad_template.py"
+    bad.write_text("from ddmr_cli.compiled import law\n"
+                   "from ddmr_cli.engine.controller_slot import command as controller_command  # controller laws\n"
+                   "from ddmr_cli.engine import controller_slot\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(RuntimeError, match="bad_template"):
+        kernels._source_for("ddmr_cli.control.pid", "bad_template")

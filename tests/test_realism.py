@@ -249,8 +249,7 @@ def test_the_compiled_step_timing_runs_the_laws():
     nominal = NominalModel.from_robot(paper_robot())
     w, wd, wdd = inputs(50, 1e-3)
     state = pid.initial_state(1)
-    total = control_steps(pid.laws.start, pid.laws.command, pid.laws.update, pid.law_parameters(nominal, 1e-3),
-                          state, w, wd, wdd)
+    total = control_steps(pid, pid.law_parameters(nominal, 1e-3), state, w, wd, wdd)
     e = wd - w  # the proportional part dominates: u ~ kp e per wheel
     assert abs(total) > 0 and np.sign(total) == np.sign(e.sum())
     fastest, median = time_per_step(pid, nominal, 1e-3, n=200, repeats=3)

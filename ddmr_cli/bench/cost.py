@@ -27,7 +27,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ddmr_cli.compiled import law
 
 #: Cortex-M4F cycles per single-precision operation (docs/model.md §10; module docstring)
 M4F_CYCLES = {"add": 1, "mul": 1, "div": 14, "sqrt": 14, "cmp": 2, "other": 1, "transcendental": 100}
@@ -40,19 +39,21 @@ BUDGET_PERIOD = 1e-3
 TRANSCENDENTAL = ("exp", "tanh", "sin", "cos", "atan2", "log", "hypot")
 
 
-@law
-def control_steps(start, command, update, p, state, w, wd, wdd):
-    """Run a controller's laws for ``len(w)`` control steps on one state record: ``start``, then per step
-    ``command`` on ``(w[i], wd[i], wdd[i])`` (both wheels) and ``update`` with the voltage it returned. Returns the
-    sum of the voltages (so that nothing is optimised away)."""
-    st = state[0]
-    start(p, st, w[0, 0], w[0, 1])
-    total = 0.0
-    for i in range(w.shape[0]):
-        u_R, u_L = command(p, st, i, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], wdd[i, 0], wdd[i, 1])
-        update(p, st, w[i, 0], w[i, 1], wd[i, 0], wd[i, 1], u_R, u_L, u_R, u_L, False, False)
-        total += u_R + u_L
-    return total
+#: the template of the loop that runs a controller's laws alone (one cached copy per controller)
+CONTROL_LOOP = "ddmr_cli.bench.control_loop"
+
+
+def control_steps(controller, p, state, w, wd, wdd) -> float:
+    """Run ``controller``'s laws for ``len(w)`` control steps on ``state[0]`` (``start``, then per step ``command``
+    and ``update``), compiled: its copy of :mod:`ddmr_cli.bench.control_loop`, cached on disk. Returns the sum of
+    the voltages."""
+    return _compiled_control_steps(controller, p, state, w, wd, wdd)(p, state, w, wd, wdd)
+
+
+def _compiled_control_steps(controller, *args):
+    from ddmr_cli.engine.kernels import compiled_copy
+
+    return compiled_copy(CONTROL_LOOP, controller.laws.__name__, "control_steps", args)
 
 
 def inputs(n: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -67,14 +68,15 @@ def inputs(n: int, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def time_per_step(controller, nominal, dt: float, n: int = 2000, repeats: int = 30) -> tuple[float, float]:
     """(min, median) ns per control step of ``controller``'s laws, compiled, one run, warm."""
-    laws, params = controller.laws, controller.law_parameters(nominal, dt)
+    params = controller.law_parameters(nominal, dt)
     w, wd, wdd = inputs(n, dt)
     state = controller.initial_state(1)
-    control_steps(laws.start, laws.command, laws.update, params, state, w, wd, wdd)  # compile / warm up
+    steps = _compiled_control_steps(controller, params, state, w, wd, wdd)  # loaded or compiled
+    steps(params, state, w, wd, wdd)  # warm up
     samples = []
     for _ in range(repeats):
         started = time.perf_counter_ns()
-        control_steps(laws.start, laws.command, laws.update, params, state, w, wd, wdd)
+        steps(params, state, w, wd, wdd)
         samples.append((time.perf_counter_ns() - started) / n)
     return min(samples), statistics.median(samples)
 

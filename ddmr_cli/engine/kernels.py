@@ -56,6 +56,8 @@ _TEMPLATE_MODULE = "ddmr_cli.engine.stepper"
 _SLOT_MODULE = "ddmr_cli.engine.controller_slot"
 _LAW_IMPORT = re.compile(r"^from ddmr_cli\.engine\.controller_slot import (\w+) as (controller_\w+)  # controller laws$",
                          re.MULTILINE)
+#: any import statement that names the slot (after the law imports are replaced, none may be left)
+_ANY_SLOT_IMPORT = re.compile(r"^\s*(from|import)\s[^\n]*\bcontroller_slot\b", re.MULTILINE)
 
 
 def cache_dir(kind: str = "kernels") -> Path:
@@ -116,12 +118,13 @@ def _imported_modules(path: Path) -> set[str]:
     return out
 
 
-def inlined_sources(law_module: str) -> list[Path]:
-    """The source files the step-loop copy for ``law_module`` can inline: the template's and the controller
-    module's, and every ``ddmr_cli`` module they import, transitively (the slot stands for the controller's module;
-    the slot's default module counts only when the controller lacks an optional law). Sorted, for a stable key."""
+def inlined_sources(law_module: str, template: str = _TEMPLATE_MODULE) -> list[Path]:
+    """The source files the copy of ``template`` (the step loop's by default) for ``law_module`` can inline: the
+    template's and the controller module's, and every ``ddmr_cli`` module they import, transitively (the slot
+    stands for the controller's module; the slot's default module counts only when the controller lacks an
+    optional law). Sorted, for a stable key."""
     module = importlib.import_module(law_module)
-    start = {_TEMPLATE_MODULE, law_module, "ddmr_cli.compiled"}
+    start = {template, law_module, "ddmr_cli.compiled"}
     if not hasattr(module, "estimates"):
         start.add(DEFAULT_MODULE)
     seen: set[str] = set()
@@ -138,22 +141,25 @@ def inlined_sources(law_module: str) -> list[Path]:
     return sorted(p.resolve() for p in files if p is not None)
 
 
-def sources_digest(law_module: str, read=Path.read_bytes) -> str:
+def sources_digest(law_module: str, read=Path.read_bytes, template: str = _TEMPLATE_MODULE) -> str:
     """The hash of :func:`inlined_sources` (each file's name and bytes, ``read`` to read them) and the versions."""
     digest = hashlib.sha256(_versions().encode())
-    for path in inlined_sources(law_module):
+    for path in inlined_sources(law_module, template):
         digest.update(path.name.encode())
         digest.update(read(path))
     return digest.hexdigest()[:16]
 
 
 @lru_cache(maxsize=None)
-def _sources_digest_cached(law_module: str) -> str:
-    return sources_digest(law_module)
+def _sources_digest_cached(law_module: str, template: str) -> str:
+    return sources_digest(law_module, template=template)
 
 
-def _source_for(law_module: str) -> str:
-    template = inspect.getsource(importlib.import_module(_TEMPLATE_MODULE))
+def _source_for(law_module: str, template_module: str = _TEMPLATE_MODULE) -> str:
+    """The template's source with its controller-law imports pointed at ``law_module`` and its ``law`` decorator
+    made :func:`~ddmr_cli.compiled.loop_law` (the copy is cached on disk, compiled without reference counting).
+    RuntimeError if the template's lines are not in the form this replaces (the step loop has 4 law imports)."""
+    template = inspect.getsource(importlib.import_module(template_module))
     module = importlib.import_module(law_module)
 
     def point(m):  # a law the controller does not define (only ``estimates`` is optional) keeps the slot's default
@@ -165,10 +171,11 @@ def _source_for(law_module: str) -> str:
     # the copy's own functions are cached on disk (its name holds the hash of every law it inlines)
     source, cached = re.subn(r"^from ddmr_cli\.compiled import law$", "from ddmr_cli.compiled import loop_law as law",
                              source, flags=re.MULTILINE)
-    if count != 4 or cached != 1:
-        raise RuntimeError(f"{_TEMPLATE_MODULE}: expected 4 controller-law imports and 1 law import to replace, "
-                           f"found {count} and {cached}")
-    return f"# generated from {_TEMPLATE_MODULE} for {law_module}; do not edit\n" + source
+    expected = 4 if template_module == _TEMPLATE_MODULE else count
+    if count != expected or count == 0 or cached != 1 or _ANY_SLOT_IMPORT.search(source):
+        raise RuntimeError(f"{template_module}: expected {expected or 'some'} controller-law imports (and no other "
+                           f"import of the slot) and 1 law import to replace, found {count} and {cached}")
+    return f"# generated from {template_module} for {law_module}; do not edit\n" + source
 
 
 def _type_identity(ty) -> str:
@@ -238,18 +245,26 @@ def _identity_by_fingerprint(call: Keyed) -> str:
     return identity
 
 
-@lru_cache(maxsize=None)
 def stepper_for(law_module: str, identity: str = "") -> ModuleType:
     """The step-loop module for the controller whose laws live in ``law_module``, compiled for the call whose
     argument types :func:`call_identity` spells as ``identity`` (generated, imported, cached on disk).
 
     The cache key covers the sources the copy inlines, the call's complete argument types and the Python and
     compiler versions (see the module docstring)."""
-    key = (_sources_digest_cached(law_module) + law_module + identity).encode()
+    return copy_for(_TEMPLATE_MODULE, law_module, identity)
+
+
+@lru_cache(maxsize=None)
+def copy_for(template: str, law_module: str, identity: str = "") -> ModuleType:
+    """The copy of the module ``template`` (a template of the step loop's kind: laws taken from the controller slot,
+    compiled with ``law``) for the controller whose laws live in ``law_module``, for the call ``identity``; the
+    step loop's is :func:`stepper_for`. Others: the cost of a control step (:mod:`ddmr_cli.bench.control_loop`)."""
+    key = (_sources_digest_cached(law_module, template) + law_module + identity).encode()
     digest = hashlib.sha256(key).hexdigest()[:16]
-    name = f"ddmr_stepper_{law_module.replace('.', '_')}_{digest}"
+    kind = template.rsplit(".", 1)[-1]
+    name = f"ddmr_{kind}_{law_module.replace('.', '_')}_{digest}"
     path = cache_dir() / f"{name}.py"
-    source = _source_for(law_module)
+    source = _source_for(law_module, template)
     if not path.is_file() or path.read_text(encoding="utf-8") != source:
         fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=path.parent)
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
@@ -272,6 +287,16 @@ def compiled_run_chunk(law_module: str, args: tuple, compiling: Callable[[], Non
     module = stepper_for(law_module, call_identity(args))
     [function] = _checked(module, [("run_chunk", args)], compiling)
     return function
+
+
+def compiled_copy(template: str, law_module: str, function: str, args: tuple,
+                  compiling: Callable[[], None] | None = None):
+    """``function`` of the copy of ``template`` for ``law_module`` (:func:`copy_for`), for a call with these
+    arguments, loaded from the disk cache or compiled now, and checked as :func:`compiled_run_chunk` checks the
+    step loop."""
+    module = copy_for(template, law_module, call_identity(args))
+    [compiled] = _checked(module, [(function, args)], compiling)
+    return compiled
 
 
 def compiled_external_step(law_module: str, control_args: tuple, account_args: tuple,
@@ -344,5 +369,5 @@ def check_single_signature(function) -> None:
                            f"its cache key must name one (delete {cache_dir()} and report this)")
 
 
-__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_external_step", "compiled_run_chunk",
-           "inlined_sources", "sources_digest", "stepper_for"]
+__all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_copy", "compiled_external_step",
+           "compiled_run_chunk", "copy_for", "inlined_sources", "sources_digest", "stepper_for"]
