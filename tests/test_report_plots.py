@@ -352,6 +352,21 @@ def test_welch_finds_the_chattering_frequency():
     assert p[0] < 1e-6 * p.max()   # the mean is removed
 
 
+@pytest.mark.parametrize("n, nperseg", [(10000, 2000), (15001, 2000), (999, 999), (1000, 37), (64, 16), (20, 20)])
+def test_welch_is_scipys(n, nperseg):
+    """The report's Welch estimate (written out to spare importing scipy.signal) is scipy.signal.welch's with its
+    defaults: odd and even segment lengths, a partial last segment, one segment."""
+    from scipy.signal import welch
+
+    rng = np.random.default_rng(n)
+    x = 5.0 + 3.0 * rng.standard_normal(n) + np.sin(0.3 * np.arange(n))
+    f, p = S.welch(x, 1000.0, nperseg)
+    f_scipy, p_scipy = welch(x, fs=1000.0, nperseg=nperseg)
+    assert f.shape == f_scipy.shape
+    assert np.allclose(f, f_scipy, rtol=1e-14, atol=0.0)
+    assert np.allclose(p, p_scipy, rtol=1e-12, atol=1e-12 * p_scipy.max())
+
+
 def test_hf_cutoff_from_config_or_engine():
     assert S.hf_cutoff({"metrics.hf_cutoff": 25}) == pytest.approx(25.0)
     assert S.hf_cutoff({}) == pytest.approx(10.0)

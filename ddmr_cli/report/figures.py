@@ -693,7 +693,7 @@ class ScenarioFigures:
             vals = m.loc[(m["job"] == job.dir.name) & (m["status"] == "ok"), "hf_fraction"].astype(float)
             hf.append((job.label, f"{100 * float(vals.mean()):.2g} %" if vals.notna().any() else "–"))
         self._save(fig, "spectrum_u", "Welch spectrum of the control voltage",
-                   f"Power spectral density of u − mean(u) over the whole run (scipy.signal.welch, Hann windows of "
+                   f"Power spectral density of u − mean(u) over the whole run (Welch's method, Hann windows of "
                    f"2 s, half overlap; mean of both wheels), log-log; dashed: the {cutoff:g} Hz cutoff of the "
                    f"hf_fraction metric. {self.paper_says('spectrum')} Ours — fraction of var(u) above {cutoff:g} Hz "
                    f"(hf_fraction, mean over seeds): {_listing(hf)}.")
@@ -1083,10 +1083,8 @@ def _collect(procs, result_q, tasks, done=lambda: None) -> list:
 
 
 def _warm_up() -> None:
-    """Import and initialise in the parent what every figure process needs (scipy.signal, matplotlib's fonts and
-    text layout), so the forked processes share it instead of each paying for it."""
-    import scipy.signal  # noqa: F401
-
+    """Import and initialise in the parent what every figure process needs (matplotlib's fonts and text layout),
+    so the forked processes share it instead of each paying for it."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(2, 2))
     ax.plot([0, 1], [0, 1], label="d̂ σ θ")

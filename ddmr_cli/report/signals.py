@@ -86,16 +86,33 @@ def has_nn(series: dict) -> bool:
                 or np.any(np.asarray(series.get("d_hat_nn_left", 0.0)) != 0))
 
 
+def welch(x: np.ndarray, fs: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Welch's power spectral density of ``x`` [unit²/Hz]: the mean of the one-sided periodograms of its segments
+    of ``nperseg`` samples with half overlap, each less its mean and under a periodic Hann window, density
+    scaling. What ``scipy.signal.welch(x, fs, nperseg=nperseg)`` returns with its defaults (tests hold the two to
+    1e-12): written out here because importing ``scipy.signal`` costs about a second, on the report's serial path
+    before its figure processes start. Returns the frequencies [Hz] and the density."""
+    x = np.asarray(x, dtype=float)
+    step = nperseg - nperseg // 2
+    count = (x.size - nperseg // 2) // step
+    starts = step * np.arange(count)
+    segments = x[starts[:, None] + np.arange(nperseg)]
+    segments = segments - segments.mean(axis=1, keepdims=True)
+    window = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(nperseg) / nperseg)  # Hann, periodic
+    power = np.abs(np.fft.rfft(segments * window, axis=1)) ** 2 / (fs * (window * window).sum())
+    power[:, 1:power.shape[1] - (1 - nperseg % 2)] *= 2.0  # one-sided: every bin but 0 and (even nperseg) Nyquist
+    return np.fft.rfftfreq(nperseg, 1.0 / fs), power.mean(axis=0)
+
+
 def welch_u(series: dict, dt: float, window: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
     """Welch power spectral density of the applied voltage, mean of both wheels [V²/Hz], over the whole run
-    (as the hf_fraction metric), Hann windows of ``window`` seconds with half overlap, mean removed."""
-    from scipy.signal import welch
-
+    (as the hf_fraction metric), Hann windows of ``window`` seconds with half overlap, mean removed
+    (:func:`welch`)."""
     fs = 1.0 / dt
     n = len(series["u_right"])
     nperseg = int(min(n, max(16, round(window * fs))))
-    f, p_r = welch(np.asarray(series["u_right"], float), fs=fs, nperseg=nperseg, detrend="constant")
-    _, p_l = welch(np.asarray(series["u_left"], float), fs=fs, nperseg=nperseg, detrend="constant")
+    f, p_r = welch(series["u_right"], fs, nperseg)
+    _, p_l = welch(series["u_left"], fs, nperseg)
     return f, 0.5 * (p_r + p_l)
 
 
