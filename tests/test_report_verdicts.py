@@ -136,6 +136,29 @@ def test_paired_on_constructed_series():
     assert S.paired(a, b).as_dict() == r.as_dict()        # seeded bootstrap: reproducible
 
 
+def test_paired_intervals_are_each_statistics_own_bootstrap():
+    """Both intervals come from one bootstrap call with a two-valued statistic: each equals scipy's bootstrap of that
+    statistic alone from the same seeded Generator (the same resamples)."""
+    from scipy import stats
+
+    rng = np.random.default_rng(3)
+    a = pd.Series(0.004 + 0.0005 * rng.standard_normal(30), index=np.arange(30))
+    b = 0.8 * a + 0.0002 * rng.standard_normal(30)
+    r = S.paired(a, b)
+    x, y = a.to_numpy(), b.to_numpy()
+    alone = {}
+    for name, statistic in (("diff", lambda x, y, axis=-1: np.mean(y, axis=axis) - np.mean(x, axis=axis)),
+                            ("reduction", lambda x, y, axis=-1: 1.0 - np.mean(y, axis=axis) / np.mean(x, axis=axis))):
+        ci = stats.bootstrap((x, y), statistic, paired=True, vectorized=True, n_resamples=S.N_BOOT,
+                             confidence_level=S.CI_LEVEL, method="percentile",
+                             random_state=np.random.default_rng(S.BOOT_SEED)).confidence_interval
+        alone[name] = (ci.low, ci.high)
+    assert r.diff_ci == pytest.approx(alone["diff"], rel=1e-12, abs=1e-15)
+    assert r.reduction_ci == pytest.approx(alone["reduction"], rel=1e-12, abs=1e-15)
+    one = S.paired(a.iloc[:1], b.iloc[:1])  # a single pair: intervals of width 0 at the values
+    assert one.diff_ci == pytest.approx((one.diff, one.diff)) and one.reduction_ci == pytest.approx((one.reduction,) * 2)
+
+
 def test_paired_uses_common_seeds_only():
     a = pd.Series([1.0, 2.0, 3.0, np.nan], index=[0, 1, 2, 3])
     b = pd.Series([1.5, 2.5, 9.0], index=[1, 2, 5])

@@ -78,8 +78,8 @@ def paired(a, b, level: float = CI_LEVEL) -> Paired | None:
 
     ``level``: the confidence level of the percentile bootstrap intervals (default :data:`CI_LEVEL`):
     ``scipy.stats.bootstrap`` with ``paired=True`` (the seeds resampled in pairs), ``method="percentile"``,
-    :data:`N_BOOT` resamples from a Generator seeded :data:`BOOT_SEED`, once for the difference of the means and
-    once for the reduction (the same resamples both times: the same seed draws the same indices). A resample whose
+    :data:`N_BOOT` resamples from a Generator seeded :data:`BOOT_SEED`, one call for both the difference of the means
+    and the reduction (a statistic of two values: both read the same resamples). A resample whose
     reference mean is 0 has an infinite reduction, which the percentiles keep: the interval is then unbounded on that
     side (the hand-written bootstrap this replaced dropped such resamples)."""
     if not 0.0 < level < 1.0:
@@ -97,27 +97,31 @@ def paired(a, b, level: float = CI_LEVEL) -> Paired | None:
         with np.errstate(divide="ignore", invalid="ignore"):
             return 1.0 - np.mean(y, axis=axis) / np.mean(x, axis=axis)
 
-    diff_ci, red_ci = (_percentile_ci(x, y, statistic, level) for statistic in (difference, reduction_of))
+    def both(x, y, axis=-1):
+        return np.stack([difference(x, y, axis), reduction_of(x, y, axis)])
+
+    diff_ci, red_ci = _percentile_cis(x, y, both, level)
     mean_a, mean_b = float(x.mean()), float(y.mean())
     reduction = 1.0 - mean_b / mean_a if mean_a != 0 else math.nan
     p, stat = _wilcoxon(y - x)
     return Paired(n, mean_a, mean_b, mean_b - mean_a, diff_ci, reduction, red_ci, p, stat)
 
 
-def _percentile_ci(x: np.ndarray, y: np.ndarray, statistic, level: float) -> tuple[float, float]:
-    """The paired percentile bootstrap interval of ``statistic(x, y)`` (``scipy.stats.bootstrap``); for a single
-    pair (scipy needs two) the interval of width 0 at its value, which is what every resample of one pair gives."""
+def _percentile_cis(x: np.ndarray, y: np.ndarray, statistic, level: float) -> list[tuple[float, float]]:
+    """The paired percentile bootstrap interval of each value of ``statistic(x, y)`` (``scipy.stats.bootstrap``,
+    one set of resamples for all); for a single pair (scipy needs two) the interval of width 0 at its value, which
+    is what every resample of one pair gives."""
     from scipy import stats
 
     if len(x) < 2:
-        value = float(statistic(x, y))
-        return (value, value) if math.isfinite(value) else (math.nan, math.nan)
+        values = np.atleast_1d(np.asarray(statistic(x, y), dtype=float))
+        return [(float(v), float(v)) if math.isfinite(v) else (math.nan, math.nan) for v in values]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a degenerate sample (every pair equal) is an interval of width 0 here
         ci = stats.bootstrap((x, y), statistic, paired=True, vectorized=True, n_resamples=N_BOOT,
                              confidence_level=level, method="percentile",
                              random_state=np.random.default_rng(BOOT_SEED)).confidence_interval
-    return float(ci.low), float(ci.high)
+    return [(float(low), float(high)) for low, high in zip(np.atleast_1d(ci.low), np.atleast_1d(ci.high))]
 
 
 def _wilcoxon(d: np.ndarray) -> tuple[float, float]:
