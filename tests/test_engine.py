@@ -107,6 +107,38 @@ def test_thread_count_does_not_change_the_numbers():
         assert np.array_equal(values, three.series[5][channel], equal_nan=True), channel
 
 
+@pytest.mark.parametrize("n_runs, n_threads", [(1, 1), (7, 1), (7, 2), (64, 2), (1000, 2), (1000, 3), (5, 8)])
+def test_the_threads_blocks_cover_the_runs_once_in_order(n_runs, n_threads):
+    from ddmr_cli.engine import simulation
+
+    blocks = simulation.blocks_of(n_runs, n_threads)
+    assert blocks[0][0] == 0 and blocks[-1][1] == n_runs
+    assert all(end == first for (_, end), (first, _) in zip(blocks, blocks[1:]))
+    assert all(end > first for first, end in blocks)
+    if n_threads == 1:
+        assert blocks == [(0, n_runs)]
+    else:
+        assert len(blocks) <= n_threads * simulation.BLOCKS_PER_THREAD
+        assert len(blocks) == n_runs or min(end - first for first, end in blocks) >= min(
+            simulation.MIN_BLOCK_RUNS, n_runs // len(blocks))
+
+
+def test_several_blocks_per_thread_do_not_change_the_numbers(monkeypatch):
+    """The threads take blocks as they come free (more blocks than threads): the same numbers as one thread."""
+    from ddmr_cli.engine import simulation
+
+    sim = make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), terrain=paper_terrain(),
+                          scenario=paper_scenario(1), duration=0.3)
+    one = simulate(sim, range(9), keep_series=[4], threads=1)
+    monkeypatch.setattr(simulation, "MIN_BLOCK_RUNS", 1)
+    assert len(simulation.blocks_of(9, 2)) == 8
+    blocks = simulate(sim, range(9), keep_series=[4], threads=2)
+    for metric, values in one.metrics.items():
+        assert np.array_equal(values, blocks.metrics[metric], equal_nan=True), metric
+    for channel, values in one.series[4].items():
+        assert np.array_equal(values, blocks.series[4][channel], equal_nan=True), channel
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
 def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
