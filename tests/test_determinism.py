@@ -128,6 +128,30 @@ def test_chunk_size_does_not_change_metrics(default_chunks, monkeypatch):
         assert_metrics_equal(chunked, i, default, i)
 
 
+@pytest.mark.parametrize("rate", [None, 250.0, 333.3333333333333])
+def test_chunks_cut_between_control_instants_and_band_points_change_nothing(monkeypatch, rate):
+    """Chunks of 67 steps (no multiple of the control period of 3 or 4 steps nor of the bands' grid stride of 2)
+    give the numbers, bands and series of the default chunks: the step loop finds the control instants and the band
+    grid points of a chunk from its first step."""
+    from ddmr_cli import paper_simulation
+
+    overrides = ["controller=smc_ndo", "simulation.duration=3.5"] + ([f"control.rate={rate}"] if rate else [])
+    sim = paper_simulation(*overrides)
+    default = simulate(sim, seeds=[0, 1, 2], keep_series=[1], threads=1)
+    assert default.bands["t"][1] == pytest.approx(2 * sim.dt)  # a grid point every other step
+    per_run_step = 8 * 3 + 8 * 8 // 2  # three normals, eight band channels every other step
+    monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 67 * 3 * per_run_step)
+    monkeypatch.setattr(simulation_module, "MIN_CHUNK_STEPS", 1)
+    done = []
+    chunked = simulate(sim, seeds=[0, 1, 2], keep_series=[1], threads=1, progress=lambda k, n: done.append(k))
+    assert done[:2] == [67, 134]
+    for name, values in default.metrics.items():
+        assert np.array_equal(values, chunked.metrics[name], equal_nan=True), name
+    for name, values in default.bands.items():
+        assert np.array_equal(values, chunked.bands[name], equal_nan=True), name
+    assert_series_equal(chunked.series[1], default.series[1])
+
+
 def test_progress_reports_every_chunk(monkeypatch):
     monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 1)  # the smallest chunks the engine allows
     calls = []

@@ -73,6 +73,11 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
     sat_R, sat_L = run["saturated"][0] != 0, run["saturated"][1] != 0
     diagnostics, surface = st["diagnostics"], world.surface  # the controller's channels, held in its record
     wd_R, wd_L = run["w_d"][0], run["w_d"][1]
+    # steps to the next control instant and to the next band grid point, and their indices, counted from the chunk's
+    # first step: no integer division at each step (a 64-bit division costs tens of cycles)
+    to_control, kc = (m - k0 % m) % m, (k0 + m - 1) // m
+    stride = world.band_stride
+    to_band, band_j = (stride - k0 % stride) % stride, 0  # band_j: the grid point's row in this chunk's buffer
     for j in range(n_steps):
         k = k0 + j
         x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
@@ -80,10 +85,11 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
         # the true pose error (2), for the metrics
         e_x, e_y, e_th = pose_error(x, y, theta, x_r, y_r, th_r)
         dev = deviation(x, y, x_r, y_r)
-        if k % m == 0:
-            # a control instant: read the sensor (§10); outer loop (3) and inverse kinematics (4)-(5) on the
-            # measured pose; w_d' by backward difference over the control period (4)
-            kc = k // m
+        control_instant = to_control == 0  # k % m == 0
+        to_control = m - 1 if control_instant else to_control - 1
+        if control_instant:
+            # a control instant (control instant kc = k // m): read the sensor (§10); outer loop (3) and inverse
+            # kinematics (4)-(5) on the measured pose; w_d' by backward difference over the control period (4)
             mw_R, mw_L, c_ex, c_ey, c_eth = w_R, w_L, e_x, e_y, e_th
             if not sen.ideal:
                 mw_R, mw_L, mx, my, mth = sensor.measure(sen, run, x, y, theta, w_R, w_L, xs[r, j if sen.noisy else 0],
@@ -105,6 +111,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
             controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
             if k == 0:
                 actuator.start(act, run, us_R, us_L)
+            kc += 1
         # the motor's voltage: the held command, delayed and lagged (§10)
         u_R, u_L = actuator.apply(act, run, k, us_R, us_L)
         # this step's disturbances, held over it (5)
@@ -129,8 +136,12 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
                    plant.back_emf_constant, plant.armature_resistance, world.hp, world.hp_zi)
         if not dev <= world.divergence_bound and run["divergence_step"] < 0:
             run["divergence_step"] = k
-        if world.bands and k % world.band_stride == 0:
-            band_row(bands[r, k // world.band_stride - band_first], dev, e_x, e_y, e_th, u_R, u_L, s_R, s_L)
+        if to_band == 0:  # k % world.band_stride == 0: a grid point of the bands, row k // stride - band_first
+            if world.bands:
+                band_row(bands[r, band_j], dev, e_x, e_y, e_th, u_R, u_L, s_R, s_L)
+            band_j += 1
+            to_band = stride
+        to_band -= 1
         if slot >= 0:
             record(series[slot, k], t, x, y, theta, x_r, y_r, th_r, e_x, e_y, e_th, dev, dist, w_R, w_L,
                    wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, rough, b, zone, diagnostics, world.recorded)
