@@ -27,7 +27,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-
 #: Cortex-M4F cycles per single-precision operation (docs/model.md §10; module docstring)
 M4F_CYCLES = {"add": 1, "mul": 1, "div": 14, "sqrt": 14, "cmp": 2, "other": 1, "transcendental": 100}
 #: factor for the loads, stores and branches around each floating-point operation (an assumption)

@@ -5,7 +5,9 @@ module. Its copy for a controller is the template's source with the four imports
 (:mod:`ddmr_cli.engine.controller_slot`, whose docstring shows them) pointed at that controller's module, written
 to a cache directory and imported; numba caches the copy's compiled
 code on disk beside it, and later processes load it instead of compiling. Without numba the same copy runs as
-Python.
+Python. Another template of the same kind, whose laws come from the same slot, is copied the same way
+(:func:`copy_for`, :func:`compiled_copy`): the loop that times a controller's laws alone
+(:mod:`ddmr_cli.bench.control_loop`).
 
 The copy's file name is its identity: a hash of everything it was compiled for (:func:`stepper_for`):
 

@@ -44,8 +44,9 @@ CHUNK_BUDGET = 16 * 2**20
 MAX_CHUNK_STEPS = 4096
 MIN_CHUNK_STEPS = 64
 #: with several threads, a chunk's runs are cut into up to this many blocks per thread, which the threads take as
-#: they come free: a core slowed by another process (measured: idle at the chunk's barrier up to 12 % of 2 cores
-#: with one block per thread) no longer holds the others up; each block has at least :data:`MIN_BLOCK_RUNS` runs
+#: they come free, so a core slowed by another process no longer holds the others up at the chunk's end (docs/model.md
+#: §5, Threads: waiting 15 % -> 5 % of the step loop's time on a shared 2-core machine); each block has at least
+#: :data:`MIN_BLOCK_RUNS` runs
 BLOCKS_PER_THREAD = 4
 MIN_BLOCK_RUNS = 32
 
