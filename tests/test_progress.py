@@ -78,7 +78,7 @@ def test_the_compile_notice_is_given_only_when_no_compiled_copy_is_cached(tmp_pa
     if not kernels.jit_enabled():
         pytest.skip("numba's JIT is disabled")
     module = _fake_stepper(tmp_path)
-    monkeypatch.setattr(kernels, "stepper_for", lambda law, identity="": module)
+    monkeypatch.setattr(kernels, "copy_for", lambda template, law, identity="": module)
     calls = []
     kernels.compiled_run_chunk("fake", (1.0,), compiling=lambda: calls.append(1))
     assert calls == [1]  # nothing cached: compiled now, said first

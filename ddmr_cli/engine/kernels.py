@@ -286,9 +286,7 @@ def compiled_run_chunk(law_module: str, args: tuple, compiling: Callable[[], Non
     What numba's cache hands back is checked against the call's own signature (a cheap set comparison); an
     entry compiled for another call is named on stderr, deleted, and the loop recompiled, so a stale or
     corrupted cache entry never runs (issue 31)."""
-    module = stepper_for(law_module, call_identity(args))
-    [function] = _checked(module, [("run_chunk", args)], compiling)
-    return function
+    return compiled_copy(_TEMPLATE_MODULE, law_module, "run_chunk", args, compiling)
 
 
 def compiled_copy(template: str, law_module: str, function: str, args: tuple,
@@ -349,7 +347,7 @@ def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Call
     if problem is None:
         setattr(module, _VERIFIED, {**verified, names: functions})
         return functions
-    print(f"ddmr: warning: the cached step loop {path} (entries {', '.join(p.name for p in entries)}) {problem}; "
+    print(f"ddmr: warning: the cached compiled copy {path} (entries {', '.join(p.name for p in entries)}) {problem}; "
           f"deleting it and recompiling", file=sys.stderr)
     for entry in entries:
         entry.unlink(missing_ok=True)
@@ -357,7 +355,7 @@ def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Call
     for function, signature in zip(functions, signatures):
         function.compile(signature)
         if set(function.overloads) != {signature}:
-            raise RuntimeError(f"{path}: the recompiled step loop does not match its call (delete {cache_dir()} "
+            raise RuntimeError(f"{path}: the recompiled copy does not match its call (delete {cache_dir()} "
                                f"and report this)")
     setattr(module, _VERIFIED, {**verified, names: functions})
     return functions

@@ -136,12 +136,12 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
                    plant.back_emf_constant, plant.armature_resistance, world.hp, world.hp_zi)
         if not dev <= world.divergence_bound and run["divergence_step"] < 0:
             run["divergence_step"] = k
-        if to_band == 0:  # k % world.band_stride == 0: a grid point of the bands, row k // stride - band_first
+        band_point = to_band == 0  # k % stride == 0: a grid point of the bands, row k // stride - band_first
+        to_band = stride - 1 if band_point else to_band - 1
+        if band_point:
             if world.bands:
                 band_row(bands[r, band_j], dev, e_x, e_y, e_th, u_R, u_L, s_R, s_L)
             band_j += 1
-            to_band = stride
-        to_band -= 1
         if slot >= 0:
             record(series[slot, k], t, x, y, theta, x_r, y_r, th_r, e_x, e_y, e_th, dev, dist, w_R, w_L,
                    wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, rough, b, zone, diagnostics, world.recorded)
