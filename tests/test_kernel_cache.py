@@ -283,6 +283,48 @@ def test_the_cache_key_covers_what_the_loop_inlines_and_only_that():
                        "adrc.py": {"ddmr_cli.control.adrc"}, "stepper.py": set(modules), "robot.py": set(modules)}
 
 
+def test_the_import_scan_finds_imports_nested_in_any_block():
+    """The cache key's import scan visits statements only; an import nested in a function, class, branch, loop,
+    ``try`` (body, handler, else, finally), ``with`` or ``match`` block is found as a full walk of the tree finds it."""
+    import ast
+
+    from ddmr_cli.engine import kernels
+
+    source = b"""
+import top
+def f():
+    import in_function
+    class C:
+        from pkg import in_class
+    if x:
+        import in_if
+    else:
+        import in_else
+    for i in y:
+        import in_for
+    while z:
+        import in_while
+    try:
+        import in_try
+    except E:
+        import in_except
+    else:
+        import in_try_else
+    finally:
+        import in_finally
+    with w:
+        from . import relative
+    match v:
+        case 1:
+            import in_case
+"""
+    scanned = {(m, level, names) for m, level, names in kernels._import_statements(source)}
+    walked = {(None, 0, tuple(a.name for a in n.names)) if isinstance(n, ast.Import)
+              else (n.module, n.level, tuple(a.name for a in n.names))
+              for n in ast.walk(ast.parse(source)) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    assert scanned == walked and len(scanned) == 13
+
+
 def test_the_controller_slot_is_the_only_substitution():
     """The template takes the controller's four laws from engine/controller_slot.py; a copy differs from the
     template in exactly those four import lines (and the cached-law import), pointed at the controller's module."""

@@ -102,20 +102,46 @@ def _module_file(name: str) -> Path | None:
     return Path(spec.origin) if spec is not None and spec.origin and spec.origin.endswith(".py") else None
 
 
+#: the fields of a statement that hold statements (an import is a statement, never inside an expression)
+_STATEMENT_LISTS = ("body", "orelse", "finalbody", "handlers", "cases")
+
+
+@lru_cache(maxsize=256)
+def _import_statements(source: bytes) -> tuple[tuple[str | None, int, tuple[str, ...]], ...]:
+    """Every import statement of a module's ``source``, nested ones too (in functions, classes, branches, ``try``,
+    ``with`` and ``match`` blocks), as ``(module, level, names)``; ``import a.b`` is ``(None, 0, ("a.b",))``.
+    Only statements are visited, not expressions (a tenth of the nodes); a source already scanned in this process
+    (another controller's copy inlines the same modules) is not parsed again."""
+    import ast
+
+    out = []
+    todo: list = [ast.parse(source)]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.Import):
+            out.append((None, 0, tuple(a.name for a in node.names)))
+        elif isinstance(node, ast.ImportFrom):
+            out.append((node.module, node.level, tuple(a.name for a in node.names)))
+        for field in _STATEMENT_LISTS:
+            value = getattr(node, field, None)
+            if isinstance(value, list):
+                todo.extend(value)
+    return tuple(out)
+
+
 def _imported_modules(path: Path) -> set[str]:
     """The ``ddmr_cli`` modules a source file imports (any import, lazy ones too; ``from pkg import sub`` counts
     ``pkg.sub``, not the package)."""
-    import ast
-
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_bytes())):
-        names = []
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            submodules = [f"{node.module}.{a.name}" for a in node.names if _module_file(f"{node.module}.{a.name}")]
+    for module, level, imported in _import_statements(path.read_bytes()):
+        if module is None:
+            names = list(imported)
+        elif module and level == 0:
+            submodules = [f"{module}.{name}" for name in imported if _module_file(f"{module}.{name}")]
             # ``from pkg import sub``: the submodule is what is used; ``from mod import name``: the module
-            names = submodules or [node.module]
+            names = submodules or [module]
+        else:
+            continue
         out.update(n for n in names if n.split(".")[0] == "ddmr_cli" and _module_file(n) is not None)
     return out
 
