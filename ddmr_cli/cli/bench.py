@@ -110,6 +110,20 @@ def reference_comparison(batch: int, controller: str, duration: float,
     return statistics.median(engine), statistics.median(bare), statistics.median(reference)
 
 
+def thread_scaling(batch: int, controller: str, duration: float, repeats: int = 3) -> tuple[float, float, float]:
+    """Median throughputs [steps/s] on one thread and on every core, and the median of their ratios, pair by pair
+    (one thread, then every core, ``repeats`` times): a pair's two runs are seconds apart, so a drift of the
+    machine's speed moves both."""
+    import statistics
+
+    engine_throughput(1, controller, 0.02, threads=0)
+    one, many = [], []
+    for _ in range(repeats):
+        one.append(engine_throughput(batch, controller, duration, threads=1))
+        many.append(engine_throughput(batch, controller, duration, threads=0))
+    return statistics.median(one), statistics.median(many), statistics.median(m / o for o, m in zip(one, many))
+
+
 def python_throughput(controller: str, duration: float) -> float:
     """The same laws run as plain Python (``NUMBA_DISABLE_JIT=1``, the fallback where numba is missing)."""
     code = ("import time; from ddmr_cli.cli.bench import _simulation; from ddmr_cli import simulate; "
@@ -183,9 +197,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
     reference_lines(tuple(b for b in batches if b > 1), durations)
     cores, big = thread_count(0), batches[-1]
-    one = engine_throughput(big, "smc_ndo_nno", durations[big], threads=1)
-    many = engine_throughput(big, "smc_ndo_nno", durations[big], threads=0)
-    print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({many / one:.2f}x one thread)")
+    one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big])
+    print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the median "
+          f"of 3 alternating pairs; one thread {one / 1e6:.3f} M/s)")
     python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
           f"compiled is {one / python:.0f}x that")
