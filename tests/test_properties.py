@@ -154,6 +154,42 @@ def test_band_rows_partitioned_give_the_sorted_rows_order_statistics(n, rows, ti
 
 
 @FAST
+@given(runs=st.integers(1, 40), points=st.integers(1, 6), seed=st.integers(0, 2**32 - 1))
+def test_band_reduction_of_diverged_runs_is_numpys_and_warns_about_nothing(runs, points, seed):
+    """With diverged runs (NaN, inf) and grid steps where every run has diverged, the bands are numpy's nanmean and
+    nanpercentile over the finite values (NaN where none is), to the bit, and the reduction raises no warning.
+    It may not silence one instead: ``warnings.catch_warnings`` is process-wide, and a thread leaving it restores
+    the filters while another thread is still reducing (the engine's threads reduce disjoint grid points at once);
+    the test takes the filters' changes away, as such a thread does."""
+    import contextlib
+    import warnings
+
+    from ddmr_cli.engine.bands import BAND_CHANNELS, HIGH, LOW, BandAccumulator
+
+    rng = np.random.default_rng(seed)
+    buffer = rng.standard_normal((runs, points, len(BAND_CHANNELS)))
+    buffer[rng.random(buffer.shape) < 0.3] = np.nan
+    buffer[rng.random(buffer.shape) < 0.1] = np.inf
+    buffer[:, 0, 6:] = np.nan  # a controller without a sliding surface: s is NaN for every run
+    finite = np.where(np.isfinite(buffer), buffer, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(finite, axis=0)
+        low, high = np.nanpercentile(finite.reshape(runs, -1).T, [LOW, HIGH], axis=1)
+    acc = BandAccumulator(points, 1e-3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(warnings, "catch_warnings", contextlib.nullcontext)
+            patch.setattr(warnings, "simplefilter", lambda *args, **kwargs: None)
+            acc.add_chunk(buffer.copy(), 0)
+    assert [str(w.message) for w in caught] == []
+    assert acc.mean.tobytes() == mean.T.tobytes()
+    assert acc.low.tobytes() == low.reshape(points, -1).T.tobytes()
+    assert acc.high.tobytes() == high.reshape(points, -1).T.tobytes()
+
+
+@FAST
 @given(a=st.lists(angles, min_size=1, max_size=20))
 def test_wrap_angle_vectorised_agrees_with_scalar(a):
     arr = np.vectorize(kinematics.wrap_angle)(np.array(a))

@@ -9,7 +9,6 @@ buffer is bounded by the engine's chunk budget, the result by the grid: memory d
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -69,6 +68,26 @@ def percentiles_of_sorted(rows: np.ndarray, percents) -> list[np.ndarray]:
     return out
 
 
+def _finite_mean(buffer: np.ndarray) -> np.ndarray:
+    """The mean over the runs (axis 0) of the finite values, NaN where none is: ``np.nanmean`` with the non-finite
+    values as NaN, operation for operation (the sum with 0 in their place, divided by the count), without its
+    warning for an all-NaN slice."""
+    finite = np.isfinite(buffer)
+    return np.sum(np.where(finite, buffer, 0.0), axis=0) / np.sum(finite, axis=0, dtype=np.intp)
+
+
+def _finite_percentiles(rows: np.ndarray, percents) -> list[np.ndarray]:
+    """``np.nanpercentile`` of each row's finite values (rows without one: NaN), without its warning for an all-NaN
+    row; non-finite values are set to NaN in place."""
+    rows[~np.isfinite(rows)] = np.nan
+    some = ~np.isnan(rows).all(axis=1)
+    out = [np.full(rows.shape[0], np.nan) for _ in percents]
+    if some.any():
+        for o, values in zip(out, np.nanpercentile(rows[some], percents, axis=1)):
+            o[some] = values
+    return out
+
+
 def band_stride(n_steps: int) -> int:
     """Steps between two grid points of a band of ``n_steps`` steps."""
     return max(1, math.ceil(n_steps / MAX_POINTS))
@@ -111,15 +130,12 @@ class BandAccumulator:
             return
         # one contiguous row of runs per grid point and channel: the percentiles partition rows, not strided columns
         columns = np.ascontiguousarray(buffer.reshape(buffer.shape[0], -1).T)
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # a grid step where every run has diverged: NaN
+        with np.errstate(all="ignore"):
             if np.isfinite(columns).all():
                 order_rows(columns, [LOW, HIGH])
                 mean, (low, high) = buffer.mean(axis=0), percentiles_of_sorted(columns, [LOW, HIGH])
-            else:  # diverged runs (inf or NaN) drop out
-                columns[~np.isfinite(columns)] = np.nan
-                mean = np.nanmean(np.where(np.isfinite(buffer), buffer, np.nan), axis=0)
-                low, high = np.nanpercentile(columns, [LOW, HIGH], axis=1)
+            else:  # diverged runs (inf or NaN) drop out; a grid step where every run has diverged is NaN
+                mean, (low, high) = _finite_mean(buffer), _finite_percentiles(columns, [LOW, HIGH])
         low, high = (a.reshape(n, len(BAND_CHANNELS)) for a in (low, high))
         self.mean[:, first:first + n] = mean.T
         self.low[:, first:first + n] = low.T
