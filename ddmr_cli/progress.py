@@ -12,7 +12,8 @@ Who shows what:
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
   (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own;
-- ``ddmr report``: a bar over the report's sections and figures.
+- ``ddmr report``: a bar over the report's sections and figures;
+- ``ddmr bench``: a :func:`status` line for each measurement, saying what it measures and for how long.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import os
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable, Iterable, TextIO
 
@@ -35,6 +37,7 @@ TTY_EVERY = 0.2
 #: machine is)
 DELAY = float(os.environ.get("DDMR_PROGRESS_DELAY", "1.0"))
 _LINE_FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f} %), {elapsed} elapsed, {remaining} left"
+_STATUS_FORMAT = "{desc} ({elapsed} elapsed)"
 
 
 def interactive(stream: TextIO | None = None) -> bool:
@@ -105,8 +108,9 @@ def bar(total: int | float | None, desc: str, unit: str = "it", enabled: bool = 
                  **kwargs)
         b.ddmr_every = 1.0
     else:
+        kwargs.setdefault("bar_format", _LINE_FORMAT)
         b = tqdm(total=total, desc=desc, unit=unit, file=_Lines(stream), mininterval=LOG_EVERY,
-                 maxinterval=LOG_EVERY, bar_format=_LINE_FORMAT, **kwargs)
+                 maxinterval=LOG_EVERY, **kwargs)
         b.ddmr_every = LOG_EVERY
     return b
 
@@ -162,6 +166,17 @@ class Ticker:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+@contextmanager
+def status(what: str, enabled: bool = True, stream: TextIO | None = None, **kwargs):
+    """A line saying ``what`` is being done and for how long, for work without a count (one measurement of
+    ``ddmr bench``): drawn after :data:`DELAY` s, its elapsed time redrawn every second on a terminal (every
+    :data:`LOG_EVERY` s in a log) by a :class:`Ticker`, and cleared from a terminal when the work ends (what is
+    printed next is its result)."""
+    with bar(None, what, enabled=enabled, stream=stream, bar_format=_STATUS_FORMAT, leave=False, **kwargs) as b, \
+            Ticker(b):
+        yield b
 
 
 class StepBar:
@@ -240,4 +255,5 @@ class SweepWatch:
             self._bar.close()
 
 
-__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging"]
+__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging",
+           "status"]

@@ -41,6 +41,26 @@ def test_on_a_terminal_the_bar_redraws_in_place():
     assert "\r" in out.getvalue() and "2/2" in out.getvalue()
 
 
+def test_a_status_says_what_is_measured_and_for_how_long_and_is_cleared_when_it_ends():
+    """``ddmr bench``'s line per measurement: its elapsed time moves while nothing else is printed (redrawn every
+    second on a terminal), the line is cleared from a terminal at the end, and in a log it is whole lines."""
+    import time
+
+    tty, log = _Tty(), io.StringIO()
+    for out in (tty, log):
+        with progress.status("measuring the table4 sweep", stream=out, delay=0):
+            time.sleep(1.3)
+    assert "\rmeasuring the table4 sweep (00:00 elapsed)" in tty.getvalue()
+    assert "\rmeasuring the table4 sweep (00:01 elapsed)" in tty.getvalue()
+    assert tty.getvalue().endswith("\r") and tty.getvalue().rsplit("\r", 2)[-2].strip() == ""  # cleared
+    assert "\r" not in log.getvalue()
+    assert log.getvalue().splitlines()[0] == "measuring the table4 sweep (00:00 elapsed)"
+    quiet = _Tty()
+    with progress.status("measuring", stream=quiet, enabled=False):
+        pass
+    assert quiet.getvalue() == ""
+
+
 def test_progress_false_prints_nothing(capsys):
     with progress.bar(3, "sweep", "jobs", enabled=False) as b, progress.Ticker(b):
         b.update(3)

@@ -47,6 +47,16 @@ WALL_TARGETS = {
 }
 
 
+def measuring(what: str):
+    """A status line on stderr while one figure is measured, saying what and for how long
+    (:func:`ddmr_cli.progress.status`: from 1 s on, redrawn every second on a terminal); stdout is flushed first,
+    so that in one log the figures printed so far come before it."""
+    from ddmr_cli import progress
+
+    sys.stdout.flush()
+    return progress.status(f"ddmr bench: measuring {what}")
+
+
 def against(wall: float, target: str, quick: bool = False) -> str:
     """``(target <= T s: R x)``, the wall time's ratio to :data:`WALL_TARGETS` (quick sizes: the target only)."""
     limit = WALL_TARGETS[target]
@@ -192,23 +202,28 @@ def main(argv: list[str] | None = None) -> int:
     durations = {1: 0.3, 10: 0.3} if quick else {1: 3.0, 50: 5.0, 1000: 1.0}
     print(f"   one core (1 thread)" + "".join(f"{'batch ' + str(b):>16}" for b in batches))
     for controller in CONTROLLERS:
-        engine_throughput(1, controller, 0.02)  # warm-up (imports, cache load)
-        figures = [engine_throughput(b, controller, durations[b]) for b in batches]
+        with measuring(f"the engine's throughput, {controller}"):
+            engine_throughput(1, controller, 0.02)  # warm-up (imports, cache load)
+            figures = [engine_throughput(b, controller, durations[b]) for b in batches]
         print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
     reference_lines(tuple(b for b in batches if b > 1), durations)
     cores, big = thread_count(0), batches[-1]
-    one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big])
+    with measuring(f"one thread against {cores} cores"):
+        one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big])
     print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the median "
           f"of 3 alternating pairs; one thread {one / 1e6:.3f} M/s)")
-    python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
+    with measuring("the laws as plain Python"):
+        python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
           f"compiled is {one / python:.0f}x that")
     if quick:  # an empty cache compiles every law of the loop (about 30 s): the largest part of a quick bench
-        warm = warm_start_time()
+        with measuring("a first run in a new process"):
+            warm = warm_start_time()
         print(f"   warm-up: with the on-disk cache {warm:.2f} s (every later process; the first run with empty "
               "caches is measured without --quick)")
     else:
-        cold, warm = compile_time()
+        with measuring("a first run with empty caches (compiling, about 30 s) and one with the cache"):
+            cold, warm = compile_time()
         print(f"   warm-up: first run with empty caches {cold:.2f} s (compilation), with the on-disk cache {warm:.2f} s "
               "(every later process)")
     if args.skip_e2e:
@@ -223,31 +238,37 @@ def main(argv: list[str] | None = None) -> int:
         run_args = ["run", "run.progress=false", f"hydra.run.dir={work / 'single'}", *extra]
         if quick:
             run_args += ["simulation.duration=1.0", "run.n_runs=5"]
-        wall, peak = _ddmr(run_args, work)
+        with measuring("a single `ddmr run`"):
+            wall, peak = _ddmr(run_args, work)
         print(f"   wall {wall:.2f} s, peak memory {peak:.0f} MB   {against(wall, 'run', quick)}")
 
         tiny = ["run.n_runs=2", "simulation.duration=2"] if quick else []
         print(f"\n3. `ddmr run -m +experiment=table4{' ' + ' '.join(tiny) if tiny else ''}` and its report")
         sweep_dir = work / "table4"
-        wall, peak = _ddmr(["run", "-m", "+experiment=table4", *tiny, f"hydra.sweep.dir={sweep_dir}",
-                            "run.progress=false", *extra], work)
+        with measuring("the table4 sweep"):
+            wall, peak = _ddmr(["run", "-m", "+experiment=table4", *tiny, f"hydra.sweep.dir={sweep_dir}",
+                                "run.progress=false", *extra], work)
         print(f"   sweep wall {wall:.2f} s, peak memory per process {peak:.0f} MB   {against(wall, 'table4', quick)}")
         sweep_wall = wall
-        wall, peak = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work)
+        with measuring("its report"):
+            wall, peak = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work)
         print(f"   report wall {wall:.2f} s, peak memory {peak:.0f} MB; sweep and report {sweep_wall + wall:.2f} s   "
               f"{against(sweep_wall + wall, 'table4+report', quick)}")
 
         n_jobs = 10 if quick else 200
         print(f"\n3b. a sweep of {n_jobs} jobs of one seed and 0.2 s each (per-job overhead)")
-        wall, peak = _ddmr(["run", "-m", "run.n_runs=1", "simulation.duration=0.2", f"run.base_seed=range(0,{n_jobs})",
-                            "run.plots=false", "run.progress=false", f"hydra.sweep.dir={work / 'jobs'}"], work)
+        with measuring(f"a sweep of {n_jobs} jobs"):
+            wall, peak = _ddmr(["run", "-m", "run.n_runs=1", "simulation.duration=0.2",
+                                f"run.base_seed=range(0,{n_jobs})", "run.plots=false", "run.progress=false",
+                                f"hydra.sweep.dir={work / 'jobs'}"], work)
         print(f"   wall {wall:.2f} s, {1000 * wall / n_jobs:.0f} ms a job in all, peak memory per process {peak:.0f} MB"
               f"   {against(wall / n_jobs, 'job', quick)}")
 
         n_seeds = 100 if quick else 10_000
         print(f"\n4. one {n_seeds}-seed scenario-1 run of 15 s (metrics only)")
-        wall, peak = _ddmr(["run", f"run.n_runs={n_seeds}", "run.keep_series=[]", "run.plots=false",
-                            "run.progress=false", f"hydra.run.dir={work / 'many'}", *extra], work)
+        with measuring(f"a run of {n_seeds:,} seeds"):
+            wall, peak = _ddmr(["run", f"run.n_runs={n_seeds}", "run.keep_series=[]", "run.plots=false",
+                                "run.progress=false", f"hydra.run.dir={work / 'many'}", *extra], work)
         print(f"   wall {wall:.2f} s, peak memory {peak:.0f} MB   (target < 200 MB for 10,000 seeds)")
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -273,7 +294,8 @@ def physics_lines(quick: bool) -> None:
 
     runs, seconds = (6, 0.2) if quick else (50, 2.0)
     for threads in (1, 0):
-        r = plant_throughput(runs, seconds, threads)
+        with measuring(f"the physics plant, {'1 thread' if threads == 1 else 'every core'}"):
+            r = plant_throughput(runs, seconds, threads)
         print(f"   {r.runs} runs x {r.steps} steps, {r.threads} thread(s): {r.rate:,.0f} steps/s; of the wall "
               f"{r.mujoco / r.wall:.0%} in MuJoCo, {r.plant / r.wall:.0%} in the plant's own Python, "
               f"{1 - (r.mujoco + r.plant) / r.wall:.0%} in the wheel-speed loop; reset {r.reset:.2f} s; "
@@ -296,7 +318,8 @@ def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repea
     for controller in REFERENCE_CONTROLLERS:
         for batch in batches:
             try:
-                engine, bare, reference = reference_comparison(batch, controller, durations[batch], repeats)
+                with measuring(f"the engine beside the reference kernel, {controller}, batch {batch}"):
+                    engine, bare, reference = reference_comparison(batch, controller, durations[batch], repeats)
             except ConfigError as exc:  # the packaged config moved off the loop the kernel runs
                 print(f"   {controller:<14}batch {batch:<6}(skipped: {exc})")
                 continue
@@ -322,7 +345,8 @@ def control_step_cost(quick: bool) -> None:
 
     print("\n5. cost of a control step (the controller's command + update laws alone, compiled, one run, warm)")
     names = [CONTROLLERS[0], CONTROLLERS[-1]] if quick else list(CONTROLLERS)  # quick: the cheapest and the dearest
-    rows = cost_table(names, repeats=5 if quick else 30, n=200 if quick else 2000)
+    with measuring("the cost of a control step"):
+        rows = cost_table(names, repeats=5 if quick else 30, n=200 if quick else 2000)
     print("\n".join(cost_lines(rows)))
     print(f"   {assumptions()}")
 
