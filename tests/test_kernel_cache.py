@@ -325,6 +325,18 @@ def f():
     assert scanned == walked and len(scanned) == 13
 
 
+def test_a_relative_import_is_not_read_as_an_absolute_one(tmp_path):
+    """``from . import ddmr_cli`` names no module of the package (relative imports are left out, as before the scan
+    visited statements only); ``import ddmr_cli.engine.bands`` does."""
+    from ddmr_cli.engine import kernels
+
+    relative, absolute = tmp_path / "relative.py", tmp_path / "absolute.py"
+    relative.write_text("from . import ddmr_cli\n")
+    absolute.write_text("import ddmr_cli.engine.bands\n")
+    assert kernels._imported_modules(relative) == set()
+    assert kernels._imported_modules(absolute) == {"ddmr_cli.engine.bands"}
+
+
 def test_the_controller_slot_is_the_only_substitution():
     """The template takes the controller's four laws from engine/controller_slot.py; a copy differs from the
     template in exactly those four import lines (and the cached-law import), pointed at the controller's module."""

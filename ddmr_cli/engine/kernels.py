@@ -109,7 +109,8 @@ _STATEMENT_LISTS = ("body", "orelse", "finalbody", "handlers", "cases")
 @lru_cache(maxsize=256)
 def _import_statements(source: bytes) -> tuple[tuple[str | None, int, tuple[str, ...]], ...]:
     """Every import statement of a module's ``source``, nested ones too (in functions, classes, branches, ``try``,
-    ``with`` and ``match`` blocks), as ``(module, level, names)``; ``import a.b`` is ``(None, 0, ("a.b",))``.
+    ``with`` and ``match`` blocks), as ``(module, level, names)``; ``import a.b`` is ``(None, 0, ("a.b",))``, a
+    relative ``from . import x`` is ``(None, 1, ("x",))``.
     Only statements are visited, not expressions (a tenth of the nodes); a source already scanned in this process
     (another controller's copy inlines the same modules) is not parsed again."""
     import ast
@@ -134,14 +135,14 @@ def _imported_modules(path: Path) -> set[str]:
     ``pkg.sub``, not the package)."""
     out: set[str] = set()
     for module, level, imported in _import_statements(path.read_bytes()):
-        if module is None:
+        if level > 0:  # relative: not a ddmr_cli module by name
+            continue
+        if module is None:  # ``import a.b``
             names = list(imported)
-        elif module and level == 0:
+        else:
             submodules = [f"{module}.{name}" for name in imported if _module_file(f"{module}.{name}")]
             # ``from pkg import sub``: the submodule is what is used; ``from mod import name``: the module
             names = submodules or [module]
-        else:
-            continue
         out.update(n for n in names if n.split(".")[0] == "ddmr_cli" and _module_file(n) is not None)
     return out
 
