@@ -31,12 +31,15 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Callable
 
 CONTROLLERS = ("pid", "smc", "smc_ndo", "smc_ndo_nno")
 #: the controllers the reference kernel runs (ddmr_cli/bench/reference.py)
 REFERENCE_CONTROLLERS = ("smc_ndo", "smc_ndo_nno")
 #: the engine may be at most this many times slower than the reference kernel (the issue's target)
 REFERENCE_TARGET = 1.5
+#: alternating repeats of each figure that is a median (the reference comparison, the threads' ratio)
+REPEATS = 3
 #: wall-time targets [s] on a 2-core machine (issue 28), for the full sizes: each line prints its ratio to them
 WALL_TARGETS = {
     "run": 1.3,            # a single `ddmr run`, with its plots, caches warm
@@ -98,8 +101,18 @@ def engine_throughput(batch: int, controller: str, duration: float, threads: int
     return batch * sim.n_steps / (time.perf_counter() - started)
 
 
+def _alternating(repeats: int, *measures: Callable[[], float]) -> list[list[float]]:
+    """Each of ``measures`` called ``repeats`` times, in turn (A B C A B C ...): a drift of the machine's speed
+    moves all of them alike. One list of figures per measure."""
+    figures: list[list[float]] = [[] for _ in measures]
+    for _ in range(repeats):
+        for measure, out in zip(measures, figures):
+            out.append(measure())
+    return figures
+
+
 def reference_comparison(batch: int, controller: str, duration: float,
-                         repeats: int = 3) -> tuple[float, float, float]:
+                         repeats: int = REPEATS) -> tuple[float, float, float]:
     """Median throughputs [steps/s] of the engine as ``ddmr run`` runs it, of the engine without the seed bands
     (nearer the reference's work: it computes no bands) and of the reference kernel (lanes layout), on the same
     batch, timed alternately ``repeats`` times each in this process, one core; all warmed up first (imports,
@@ -112,25 +125,22 @@ def reference_comparison(batch: int, controller: str, duration: float,
     engine_throughput(1, controller, 0.02)
     engine_throughput(1, controller, 0.02, bands=False)
     reference_throughput(_simulation(controller, 0.02), 1)
-    engine, bare, reference = [], [], []
-    for _ in range(repeats):
-        engine.append(engine_throughput(batch, controller, duration))
-        bare.append(engine_throughput(batch, controller, duration, bands=False))
-        reference.append(reference_throughput(sim, batch))
-    return statistics.median(engine), statistics.median(bare), statistics.median(reference)
+    figures = _alternating(repeats, lambda: engine_throughput(batch, controller, duration),
+                           lambda: engine_throughput(batch, controller, duration, bands=False),
+                           lambda: reference_throughput(sim, batch))
+    engine, bare, reference = (statistics.median(f) for f in figures)
+    return engine, bare, reference
 
 
-def thread_scaling(batch: int, controller: str, duration: float, repeats: int = 3) -> tuple[float, float, float]:
+def thread_scaling(batch: int, controller: str, duration: float,
+                   repeats: int = REPEATS) -> tuple[float, float, float]:
     """Median throughputs [steps/s] on one thread and on every core, and the median of their ratios, pair by pair
-    (one thread, then every core, ``repeats`` times): a pair's two runs are seconds apart, so a drift of the
-    machine's speed moves both."""
+    (:func:`_alternating`: a pair's two runs are seconds apart, so a drift of the machine's speed moves both)."""
     import statistics
 
     engine_throughput(1, controller, 0.02, threads=0)
-    one, many = [], []
-    for _ in range(repeats):
-        one.append(engine_throughput(batch, controller, duration, threads=1))
-        many.append(engine_throughput(batch, controller, duration, threads=0))
+    one, many = _alternating(repeats, lambda: engine_throughput(batch, controller, duration, threads=1),
+                             lambda: engine_throughput(batch, controller, duration, threads=0))
     return statistics.median(one), statistics.median(many), statistics.median(m / o for o, m in zip(one, many))
 
 
@@ -211,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     with measuring(f"one thread against {cores} cores"):
         one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big])
     print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the median "
-          f"of 3 alternating pairs; one thread {one / 1e6:.3f} M/s)")
+          f"of {REPEATS} alternating pairs; one thread {one / 1e6:.3f} M/s)")
     with measuring("the laws as plain Python"):
         python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
@@ -302,7 +312,7 @@ def physics_lines(quick: bool) -> None:
               f"table4_physics (400 runs x 15 s) at this rate: {400 * 15000 / r.rate / 60:.1f} min")
 
 
-def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repeats: int = 3) -> None:
+def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repeats: int = REPEATS) -> None:
     """Section 1's comparison with the reference kernel (:func:`reference_comparison`), one line per controller and
     batch size."""
     from ddmr_cli.compiled import jit_enabled
