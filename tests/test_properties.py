@@ -16,6 +16,7 @@ from ddmr_cli.control import rbf
 from ddmr_cli.model import kinematics
 from ddmr_cli import checks as validate
 from ddmr_cli.control.pid import _pd_spectral_radius
+from ddmr_cli.compiled import plain
 from ddmr_cli.errors import ConfigError
 
 FAST = settings(max_examples=60, deadline=None, database=None)
@@ -195,6 +196,22 @@ def test_wrap_angle_vectorised_agrees_with_scalar(a):
     arr = np.vectorize(kinematics.wrap_angle)(np.array(a))
     assert arr.shape == (len(a),)
     np.testing.assert_array_equal(arr, [kinematics.wrap_angle(x) for x in a])
+
+
+@FAST
+@given(x=st.floats(-1e150, 1e150), y=st.floats(-1e150, 1e150), x_ref=st.floats(-1e150, 1e150),
+       y_ref=st.floats(-1e150, 1e150))
+@example(x=0.0, y=0.0, x_ref=3.0, y_ref=4.0)
+@example(x=1.0, y=-2.0, x_ref=1.0, y_ref=-2.0)
+def test_deviation_is_the_euclidean_distance_to_an_ulp(x, y, x_ref, y_ref):
+    """The deviation (the square root of the sum of squares, compiled and as Python) is ``math.hypot``'s distance
+    to within 2 ulp wherever the squares neither overflow nor underflow (examples: a 3-4-5 triangle, and 0 at the
+    reference)."""
+    dx, dy = x_ref - x, y_ref - y
+    exact = math.hypot(dx, dy)
+    assume(exact < 1e150 and not 0.0 < exact <= 1e-150)
+    for law in (kinematics.deviation, plain(kinematics.deviation)):
+        assert law(x, y, x_ref, y_ref) == pytest.approx(exact, rel=4.5e-16, abs=0.0)
 
 
 poses = st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-10, 10))

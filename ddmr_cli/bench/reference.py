@@ -35,7 +35,7 @@ Two layouts of the same loop (``layout=``):
     same bits alone or in any batch. A neuron whose exponent is below -746 for every run of the block (its phi
     is exactly 0, as in the engine) is skipped.
 ``"scalar"``
-    One run at a time, its state in registers, libm's ``cos``, ``sin``, ``exp`` and ``hypot`` where the engine
+    One run at a time, its state in registers, libm's ``cos``, ``sin`` and ``exp`` where the engine
     calls them, the same operations in the same order (on the reference machine: the same trajectory bit for
     bit; the sums differ in summation order only). Each step waits for the one before (a long chain of dependent
     operations), which the lanes layout overlaps across runs.
@@ -512,7 +512,7 @@ def scalar_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
             e_x = cs * dx + sn * dy
             e_y = cs * dy - sn * dx
             e_th = wrap(th_r - th)
-            dev = math.hypot(dx, dy)
+            dev = math.sqrt(dx * dx + dy * dy)
             v_d = v_r * math.cos(e_th) + c.k_x * e_x
             om_d = om_r + v_r * (c.k_y * e_y + c.k_theta * math.sin(e_th))
             wd_R = (v_d + c.half_track * om_d) * c.inv_radius
