@@ -112,11 +112,13 @@ def _alternating(repeats: int, *measures: Callable[[], float]) -> list[list[floa
 
 
 def reference_comparison(batch: int, controller: str, duration: float,
-                         repeats: int = REPEATS) -> tuple[float, float, float]:
+                         repeats: int = REPEATS) -> tuple[float, float, float, float]:
     """Median throughputs [steps/s] of the engine as ``ddmr run`` runs it, of the engine without the seed bands
-    (nearer the reference's work: it computes no bands) and of the reference kernel (lanes layout), on the same
-    batch, timed alternately ``repeats`` times each in this process, one core; all warmed up first (imports,
-    compiled code loaded or compiled)."""
+    (nearer the reference's work: it computes no bands), of the reference kernel (lanes layout: runs as its SIMD
+    axis) and of the same kernel in its scalar layout (one run at a time, as the engine steps: the engine's ratio
+    to it is what generality and the full metric set cost, the lanes' ratio to it what the SIMD layout buys), on
+    the same batch, timed alternately ``repeats`` times each in this process, one core; all warmed up first
+    (imports, compiled code loaded or compiled)."""
     import statistics
 
     from ddmr_cli.bench.reference import reference_throughput
@@ -124,12 +126,14 @@ def reference_comparison(batch: int, controller: str, duration: float,
     sim = _simulation(controller, duration)
     engine_throughput(1, controller, 0.02)
     engine_throughput(1, controller, 0.02, bands=False)
-    reference_throughput(_simulation(controller, 0.02), 1)
+    for layout in ("lanes", "scalar"):
+        reference_throughput(_simulation(controller, 0.02), 1, layout)
     figures = _alternating(repeats, lambda: engine_throughput(batch, controller, duration),
                            lambda: engine_throughput(batch, controller, duration, bands=False),
-                           lambda: reference_throughput(sim, batch))
-    engine, bare, reference = (statistics.median(f) for f in figures)
-    return engine, bare, reference
+                           lambda: reference_throughput(sim, batch),
+                           lambda: reference_throughput(sim, batch, "scalar"))
+    engine, bare, reference, scalar = (statistics.median(f) for f in figures)
+    return engine, bare, reference, scalar
 
 
 def thread_scaling(batch: int, controller: str, duration: float,
@@ -329,13 +333,17 @@ def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repea
         for batch in batches:
             try:
                 with measuring(f"the engine beside the reference kernel, {controller}, batch {batch}"):
-                    engine, bare, reference = reference_comparison(batch, controller, durations[batch], repeats)
+                    engine, bare, reference, scalar = reference_comparison(batch, controller, durations[batch],
+                                                                           repeats)
             except ConfigError as exc:  # the packaged config moved off the loop the kernel runs
                 print(f"   {controller:<14}batch {batch:<6}(skipped: {exc})")
                 continue
             print(f"   {controller:<14}batch {batch:<6}engine {engine / 1e6:7.3f} M/s, without bands {bare / 1e6:7.3f} "
                   f"M/s, reference {reference / 1e6:7.3f} M/s: engine is {reference / engine:.2f}x slower than the "
                   f"reference, {reference / bare:.2f}x without bands (target <= {REFERENCE_TARGET:g}x at equal work)")
+            print(f"   {'':<14}{'':<12}the reference one run at a time (its scalar layout, the engine's) "
+                  f"{scalar / 1e6:7.3f} M/s: the engine without bands is {scalar / bare:.2f}x slower than it (generality, "
+                  f"every metric and segment), the lanes layout runs at {reference / scalar:.2f}x its speed (what the SIMD layout buys)")
 
 
 def cost_lines(rows: list[dict]) -> list[str]:
