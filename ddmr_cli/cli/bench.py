@@ -342,8 +342,9 @@ def reference_lines(batches: tuple[int, ...], durations: dict[int, float], repea
                   f"M/s, reference {reference / 1e6:7.3f} M/s: engine is {reference / engine:.2f}x slower than the "
                   f"reference, {reference / bare:.2f}x without bands (target <= {REFERENCE_TARGET:g}x at equal work)")
             print(f"   {'':<14}{'':<12}the reference one run at a time (its scalar layout, the engine's) "
-                  f"{scalar / 1e6:7.3f} M/s: the engine without bands is {scalar / bare:.2f}x slower than it (generality, "
-                  f"every metric and segment), the lanes layout runs at {reference / scalar:.2f}x its speed (what the SIMD layout buys)")
+                  f"{scalar / 1e6:7.3f} M/s: the engine without bands is {scalar / bare:.2f}x slower than it "
+                  f"(generality, every metric and segment), the lanes layout runs at {reference / scalar:.2f}x its "
+                  f"speed (what the SIMD layout buys)")
 
 
 def cost_lines(rows: list[dict]) -> list[str]:
