@@ -199,8 +199,8 @@ def test_wrap_angle_vectorised_agrees_with_scalar(a):
 
 
 @FAST
-@given(x=st.floats(-1e150, 1e150), y=st.floats(-1e150, 1e150), x_ref=st.floats(-1e150, 1e150),
-       y_ref=st.floats(-1e150, 1e150))
+@given(x=st.floats(-1e140, 1e140), y=st.floats(-1e140, 1e140), x_ref=st.floats(-1e140, 1e140),
+       y_ref=st.floats(-1e140, 1e140))
 @example(x=0.0, y=0.0, x_ref=3.0, y_ref=4.0)
 @example(x=1.0, y=-2.0, x_ref=1.0, y_ref=-2.0)
 def test_deviation_is_the_euclidean_distance_to_an_ulp(x, y, x_ref, y_ref):
@@ -209,7 +209,7 @@ def test_deviation_is_the_euclidean_distance_to_an_ulp(x, y, x_ref, y_ref):
     reference)."""
     dx, dy = x_ref - x, y_ref - y
     exact = math.hypot(dx, dy)
-    assume(exact < 1e150 and not 0.0 < exact <= 1e-150)
+    assume(not 0.0 < exact <= 1e-150)  # the squares underflow (they cannot overflow below 1e140)
     for law in (kinematics.deviation, plain(kinematics.deviation)):
         assert law(x, y, x_ref, y_ref) == pytest.approx(exact, rel=4.5e-16, abs=0.0)
 
