@@ -58,12 +58,13 @@ def pose_error(x, y, theta, x_ref, y_ref, theta_ref):
 
 @law
 def deviation(x, y, x_ref, y_ref):
-    """Distance from the reference position [m] (Table 4's 'Deviation', docs/model.md §7).
+    """Distance from the reference position [m] (Table 4's 'Deviation', docs/model.md §2 and §7).
 
-    The square root of the sum of squares, not ``math.hypot``: the same distance to within an ulp, and glibc's
+    The square root of the sum of squares, not ``math.hypot``: the same distance to within 2 ulp, and glibc's
     hypot (rounded correctly, with scaling) took 7.5 % of the step loop's samples under perf (smc_ndo, 50 runs:
     164 -> 150 ns per run and step, the fastest of 6 process pairs). hypot's scaling matters only beyond 1e154 m,
-    where a run has long diverged: the deviation is then inf, above any finite divergence bound."""
+    where a run has long diverged (the deviation is then inf, above any finite divergence bound), and below
+    1e-154 m, where the squares underflow and the deviation is 0."""
     dx, dy = x_ref - x, y_ref - y
     return math.sqrt(dx * dx + dy * dy)
 
