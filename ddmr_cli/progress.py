@@ -12,7 +12,8 @@ Who shows what:
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
   (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own;
-- ``ddmr report``: a bar over the report's sections and figures;
+- ``ddmr report``: a bar over the report's sections and figures, and the verdicts (:func:`say`) as soon as they
+  are known, before the figures are drawn;
 - ``ddmr bench``: a :func:`status` line for each measurement, saying what it measures and for how long.
 """
 
@@ -113,6 +114,14 @@ def bar(total: int | float | None, desc: str, unit: str = "it", enabled: bool = 
                  maxinterval=LOG_EVERY, **kwargs)
         b.ddmr_every = LOG_EVERY
     return b
+
+
+def say(lines: Iterable[str], stream: TextIO | None = None) -> None:
+    """Lines of a result on ``stream`` (default stdout) while a bar may be drawn on stderr: tqdm clears the bar
+    on the terminal, writes the lines and draws the bar again below them."""
+    stream = sys.stdout if stream is None else stream
+    tqdm.write("\n".join(lines), file=stream)  # one clear and redraw of the bar for all of them
+    stream.flush()
 
 
 def each(items: Iterable, total: int, desc: str, unit: str = "it", enabled: bool = True, **kwargs):

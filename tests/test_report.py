@@ -569,6 +569,19 @@ def test_forked_figure_processes_get_their_data_explicitly(mini_sweep, tmp_path)
         F._run_forked(data, tmp_path / "bad", styles, [("paper_1", "fig_nonexistent")], 1)
 
 
+def test_figure_processes_draw_below_the_reports_priority(mini_sweep, tmp_path, monkeypatch):
+    """The forked figure processes run FIGURE_NICE nicer than the report's own process (its verdicts first)."""
+    import os
+
+    from ddmr_cli.report import data as D
+    from ddmr_cli.report import figures as F
+
+    monkeypatch.setattr(F, "make_one", lambda *args: os.nice(0))  # forked: the workers call this one
+    niceness = F._run_forked(D.load(mini_sweep), tmp_path, None, [("paper_1", "any")] * 2, 2)
+    assert F.FIGURE_NICE > 0
+    assert niceness == [min(19, os.nice(0) + F.FIGURE_NICE)] * 2
+
+
 @pytest.mark.slow  # draws figures
 def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
     """The paper's line: y against x; a circle: the lateral error against the distance travelled. A job on another
@@ -601,6 +614,39 @@ def test_cli_margin_flag(mini_sweep, tmp_path, capsys):
     assert "Practical margin: ±0.05 mm" in md and "--margin 0.05mm" in md and "--margin 2%" in md
     assert main(["report", str(run), "--out", str(tmp_path / "p"), "--margin", "lots"]) == 2
     assert "margin" in capsys.readouterr().err
+
+
+def test_cli_prints_the_verdicts_before_the_figures(mini_sweep, tmp_path, capsys, monkeypatch):
+    """`ddmr report` prints the verdicts as soon as they are known, before its figures section waits for the
+    figure processes: one line per claim, scenario and NNO reading, with the verdict on each metric as
+    tables/verdicts.csv records it (the metric the claim rests on first)."""
+    import pandas as pd
+
+    from ddmr_cli.cli.main import main
+    from ddmr_cli.report import build as B
+    from ddmr_cli.report.verdicts import metric_name
+
+    printed = {}
+    figures = B.Report.figures
+
+    def figures_section(self):
+        printed["before figures"] = capsys.readouterr().out
+        return figures(self)
+
+    monkeypatch.setattr(B.Report, "figures", figures_section)
+    assert main(["report", str(mini_sweep), "--out", str(tmp_path / "o"), "--no-figures"]) == 0
+    head, *lines = printed["before figures"].splitlines()
+    assert head.startswith("ddmr: verdicts on the paper's claims") and "report written" in capsys.readouterr().out
+    table = pd.read_csv(tmp_path / "o" / "tables" / "verdicts.csv")
+    expected = []
+    for (_, scenario, reading), rows in table.groupby(["claim", "scenario", "nno_reading"], sort=False):
+        on = rows.drop_duplicates("metric").set_index("metric")["claim_verdict_on_metric"]
+        rests_on = rows["claim_rests_on"].iloc[0]
+        order = [rests_on, *(m for m in on.index if m != rests_on)]
+        expected.append((scenario, "; ".join(f"{on[m].split(' (')[0]} on the {metric_name(m)}" for m in order)))
+    assert len(lines) == len(expected) > 0
+    for scenario, verdicts in expected:
+        assert any(f"[{scenario}, " in line and line.endswith(f"]: {verdicts}") for line in lines), verdicts
 
 
 @pytest.mark.slow

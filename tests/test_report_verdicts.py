@@ -292,6 +292,28 @@ def test_claims_use_the_steady_state_deviation_when_present():
     assert V.deviation_metric(plain) == "deviation_mae"
 
 
+def test_the_printed_answer_is_each_claims_verdict_on_each_metric():
+    """answer_lines (what `ddmr report` prints before its figures): one line per claim, scenario and reading, with
+    the verdict on each metric the claim is judged on, the one its overall verdict rests on first; none when no
+    claim could be checked."""
+    from ddmr_cli.report import verdicts as V
+
+    dev = {"pid": 6.9, "smc": 2.9, "smc_ndo": 1.8, "smc_ndo_nno": 1.83}
+    ss = {"pid": 5.0, "smc": 0.40, "smc_ndo": 0.30, "smc_ndo_nno": 0.15}
+    data = make_data({c: {**base(dev[c]), "deviation_mae_ss": (ss[c] / 1000, 0.05)} for c in dev})
+    results = V.evaluate(data)
+    lines = V.answer_lines(data, results)
+    assert len(lines) == sum(len(c.overall) for c in results) == 5
+    for c in results:
+        for (scenario, reading), overall in c.overall.items():
+            line = next(ln for ln in lines if ln.startswith(f"{c.title} [{scenario}, SMC-NDO-NNO]: "))
+            assert line.split("]: ", 1)[1].startswith(f"{category(overall)} on the {V.metric_name(c.metrics[0])}")
+    vs_smc = next(ln for ln in lines if ln.startswith("SMC-NDO-NNO: over 60 %"))
+    assert vs_smc.endswith(": holds on the steady-state deviation MAE (ours); does not hold on the whole-run "
+                           "deviation MAE (the paper's Table 4)")
+    assert V.answer_lines(make_data({"smc_ndo_nno": base(1.8)}), V.evaluate(make_data({"smc_ndo_nno": base(1.8)}))) == []
+
+
 def test_missing_controllers_are_listed_once():
     from ddmr_cli.report import verdicts as V
 

@@ -13,7 +13,7 @@ from ddmr_cli.cli import main as cli
 
 
 def _fake_report(calls: list):
-    def build_report(path, out=None, margin=None, figures=True, progress=True, all_figures=False):
+    def build_report(path, out=None, margin=None, figures=True, progress=True, all_figures=False, on_verdicts=None):
         calls.append((path, out, margin, figures))
         return path
     return build_report

@@ -27,7 +27,7 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
             written = staged(final, lambda root: tuning.build(path, root, margin))
         else:
             written = build_report(path, out, figures=figures, progress=progress, all_figures=all_figures,
-                                   **({"margin": margin} if margin is not None else {}))
+                                   on_verdicts=_say_verdicts, **({"margin": margin} if margin is not None else {}))
     except jobdir.FaultError as exc:  # a file-system fault or a refused --out: one line naming the path, exit 1
         print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
         return EXIT_FAILED
@@ -40,6 +40,14 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
         return EXIT_FAILED
     print(f"ddmr: report written to {written}")
     return 0
+
+
+def _say_verdicts(lines: list[str]) -> None:
+    """The verdicts on stdout as soon as the report knows them (the figures are drawn after): the answer first."""
+    from ddmr_cli.progress import say
+
+    say(["ddmr: verdicts on the paper's claims (rules, numbers and figures in the report):",
+         *(f"  {line}" for line in lines)])
 
 
 def _latest_sweep(root: Path) -> Path | None:

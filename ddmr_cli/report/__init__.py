@@ -13,7 +13,7 @@ from pathlib import Path
 
 
 def build_report(path, out=None, margin=None, figures: bool = True, progress: bool = True,
-                 all_figures: bool = False) -> Path:
+                 all_figures: bool = False, on_verdicts=None) -> Path:
     """Build the report of a sweep dir or a run dir; returns the output dir.
 
     ``margin`` is the practical margin of the verdicts (a tie when the 95 % CI of a paired difference lies inside
@@ -22,6 +22,8 @@ def build_report(path, out=None, margin=None, figures: bool = True, progress: bo
     writes the markdown and every table without drawing a figure (seconds instead of tens of seconds). A scenario
     on a reference other than the paper's line gets its summary figures only, unless ``all_figures``.
     ``progress``: a bar with an ETA on stderr (a plain line every 10 s when stderr is not a terminal).
+    ``on_verdicts``: called with the verdicts on the paper's claims in plain text, one line per claim, scenario and
+    reading, as soon as they are known (before the figures are drawn; not called when no claim could be checked).
 
     Raises
     ------
@@ -32,7 +34,7 @@ def build_report(path, out=None, margin=None, figures: bool = True, progress: bo
     """
     from ddmr_cli.report.build import build
 
-    return build(path, out, margin, figures, progress, all_figures)
+    return build(path, out, margin, figures, progress, all_figures, on_verdicts)
 
 
 __all__ = ["build_report"]

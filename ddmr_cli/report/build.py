@@ -58,9 +58,13 @@ class Report:
     moved into, the ``--out`` its markdown names (default ``out``)."""
 
     def __init__(self, data: ReportData, out: Path, margin: Margin | None = None, draw_figures: bool = True,
-                 final: Path | None = None, step=None, all_figures: bool = False):
+                 final: Path | None = None, step=None, all_figures: bool = False, on_verdicts=None):
         self.data, self.out, self.margin = data, out, margin or Margin()
         self.step = step or (lambda n=1: None)  # advances the report's progress bar
+        #: called with the verdicts in plain text (:func:`~ddmr_cli.report.verdicts.answer_lines`) as soon as they
+        #: are known: first of the sections, while the figure processes draw
+        self.on_verdicts = on_verdicts
+        self._results = None  # the verdicts (V.evaluate), once
         self.final = Path(final) if final is not None else Path(out)
         self.draw_figures = draw_figures
         self.all_figures = all_figures  # every figure of every scenario (figures.figure_tasks)
@@ -223,10 +227,23 @@ class Report:
             self.add(f"**{figure.title}.** {figure.caption}", "",
                      f"![{figure.title}]({figure.path.relative_to(self.out).as_posix()})", "")
 
+    def results(self) -> list:
+        """The verdicts on the paper's claims (:func:`~ddmr_cli.report.verdicts.evaluate`), evaluated once."""
+        if self._results is None:
+            self._results = V.evaluate(self.data, self.margin)
+        return self._results
+
+    def answer(self) -> None:
+        """Hand the verdicts in plain text to :attr:`on_verdicts`, if any (the answer before the figures)."""
+        if self.on_verdicts is not None:
+            lines = V.answer_lines(self.data, self.results())
+            if lines:
+                self.on_verdicts(lines)
+
     def verdicts(self) -> None:
         import pandas as pd
 
-        results = V.evaluate(self.data, self.margin)
+        results = self.results()
         link = self.csv("verdicts.csv", pd.DataFrame(V.rows(results)), "paired comparisons behind the verdicts")
         self.add(V.markdown(self.data, results, self.margin), f"Every paired comparison: {link}.", "")
 
@@ -444,6 +461,7 @@ class Report:
     def build(self) -> Path:
         if self.draw_figures:
             self.start_figures()
+        self.answer()
         stats = T.stats_frame(self.data)
         with_stats = {"table4", "effort", "estimation"}
         for name in self.SECTIONS:
@@ -459,12 +477,13 @@ class Report:
         return self.out
 
 
-def build(path, out=None, margin=None, figures: bool = True, progress: bool = True, all_figures: bool = False
-          ) -> Path:
+def build(path, out=None, margin=None, figures: bool = True, progress: bool = True, all_figures: bool = False,
+          on_verdicts=None) -> Path:
     """Write the report of a sweep or run dir into ``out`` (default ``PATH/report``), staged (:func:`staged`);
     ``progress``: a bar over the sections and the figures, with an ETA (:mod:`ddmr_cli.progress`), drawn once the
     report's dir is locked, so a refused report prints its one error line only; ``all_figures``: every figure of
-    every scenario (:func:`ddmr_cli.report.figures.figure_tasks`)."""
+    every scenario (:func:`ddmr_cli.report.figures.figure_tasks`); ``on_verdicts``: called with the verdicts in plain
+    text as soon as they are known (:meth:`Report.answer`)."""
     from ddmr_cli.progress import Ticker, bar
 
     margin = Margin.parse(margin)
@@ -472,7 +491,7 @@ def build(path, out=None, margin=None, figures: bool = True, progress: bool = Tr
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
 
     def write(root: Path) -> Path:
-        report = Report(data, root, margin, figures, final=out_dir, all_figures=all_figures)
+        report = Report(data, root, margin, figures, final=out_dir, all_figures=all_figures, on_verdicts=on_verdicts)
         if figures:
             report.start_figures()  # the figure processes forked before the bar's thread starts
         with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs") as b, Ticker(b):

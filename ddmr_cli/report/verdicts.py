@@ -478,6 +478,21 @@ def summary_line(data: ReportData, c: ClaimResult, scenario: str, reading: str, 
     return f"- {head}{scenario}, {label}: " + "; ".join(parts)
 
 
+def answer_lines(data: ReportData, results: list[ClaimResult]) -> list[str]:
+    """The verdicts in plain text, one line per claim, scenario and NNO reading: the verdict on each metric the
+    claim is judged on, the one its overall verdict rests on first (the Summary of :func:`markdown` without its
+    numbers or reasons). What ``ddmr report`` prints as soon as the verdicts are known, before the figures are
+    drawn; none when no claim could be checked."""
+    lines = []
+    for c in results:
+        for scenario, reading in c.overall:
+            label = next(j.display.label for j in data.jobs if j.controller == reading)
+            on = [f"{category(c.by_metric[(scenario, reading, m)])} on the {metric_name(m)}"
+                  for m in c.metrics if (scenario, reading, m) in c.by_metric]
+            lines.append(f"{c.title} [{scenario}, {label}]: " + "; ".join(on))
+    return lines
+
+
 def rows(results: list[ClaimResult]) -> list[dict]:
     out = []
     for c in results:
