@@ -308,3 +308,13 @@ def test_report_true_writes_the_report_and_ddmr_report_takes_the_latest_sweep(tm
     none = run_ddmr(["report"], cwd=empty)
     assert none.returncode == 2 and none.stderr.startswith("ddmr: error: path=(none): no sweep under ")
     assert len(none.stderr.strip().splitlines()) == 1
+
+
+def test_bench_times_the_line_a_command_prints_its_answer_with(tmp_path):
+    """`ddmr bench` times when a command's stdout first prints a marked line (the report's verdicts), and drains
+    the rest of its output (a full pipe would stop the command)."""
+    from ddmr_cli.cli.bench import _ddmr
+
+    wall, peak, marked = _ddmr(["run", "--help"], tmp_path, mark="ddmr run")
+    assert marked is not None and 0 < marked <= wall and peak > 0
+    assert _ddmr(["--help"], tmp_path, mark="no such line")[2] is None

@@ -183,20 +183,38 @@ def compile_time() -> tuple[float, float]:
     return cold, warm
 
 
-def _ddmr(args: list[str], cwd: Path) -> tuple[float, float]:
+def _ddmr(args: list[str], cwd: Path, mark: str | None = None) -> tuple[float, float, float | None]:
     """Run the console script; returns (wall seconds, peak RSS in MB of its largest process: itself or a worker it
-    waited for), from ``wait4`` on this one command (not the peak of every command run before it)."""
+    waited for, from ``wait4`` on this one command, not the peak of every command run before it; the seconds
+    until its stdout first printed a line starting with ``mark``, None without one)."""
+    import threading
+
     exe = shutil.which("ddmr") or str(Path(sys.executable).with_name("ddmr"))
+    marked: list[float] = []
     started = time.perf_counter()
     with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen([exe, *args], cwd=cwd, stdout=subprocess.DEVNULL, stderr=err)
+        proc = subprocess.Popen([exe, *args], cwd=cwd, stdout=subprocess.PIPE, stderr=err)
+
+        def read() -> None:  # drains stdout (a full pipe would stop the command), timing the marked line
+            for line in proc.stdout:
+                if mark and not marked and line.decode(errors="replace").startswith(mark):
+                    marked.append(time.perf_counter() - started)
+
+        reader = threading.Thread(target=read, daemon=True)
+        reader.start()
         _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)
         wall = time.perf_counter() - started
+        reader.join()
+        proc.stdout.close()
         if proc.returncode != 0:
             err.seek(0)
             raise RuntimeError(f"ddmr {' '.join(args)} failed:\n{err.read().decode(errors='replace')[-2000:]}")
-    return wall, usage.ru_maxrss / 1024.0
+    return wall, usage.ru_maxrss / 1024.0, (marked[0] if marked else None)
+
+
+#: the line ``ddmr report`` starts its verdicts with (``cli/reporting.py``): when the answer is there
+VERDICTS_MARK = "ddmr: verdicts on"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -253,26 +271,27 @@ def main(argv: list[str] | None = None) -> int:
         if quick:
             run_args += ["simulation.duration=1.0", "run.n_runs=5"]
         with measuring("a single `ddmr run`"):
-            wall, peak = _ddmr(run_args, work)
+            wall, peak, _ = _ddmr(run_args, work)
         print(f"   wall {wall:.2f} s, peak memory {peak:.0f} MB   {against(wall, 'run', quick)}")
 
         tiny = ["run.n_runs=2", "simulation.duration=2"] if quick else []
         print(f"\n3. `ddmr run -m +experiment=table4{' ' + ' '.join(tiny) if tiny else ''}` and its report")
         sweep_dir = work / "table4"
         with measuring("the table4 sweep"):
-            wall, peak = _ddmr(["run", "-m", "+experiment=table4", *tiny, f"hydra.sweep.dir={sweep_dir}",
+            wall, peak, _ = _ddmr(["run", "-m", "+experiment=table4", *tiny, f"hydra.sweep.dir={sweep_dir}",
                                 "run.progress=false", *extra], work)
         print(f"   sweep wall {wall:.2f} s, peak memory per process {peak:.0f} MB   {against(wall, 'table4', quick)}")
         sweep_wall = wall
         with measuring("its report"):
-            wall, peak = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work)
-        print(f"   report wall {wall:.2f} s, peak memory {peak:.0f} MB; sweep and report {sweep_wall + wall:.2f} s   "
-              f"{against(sweep_wall + wall, 'table4+report', quick)}")
+            wall, peak, answer = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work, VERDICTS_MARK)
+        verdicts = f" (its verdicts printed after {answer:.2f} s)" if answer is not None else ""
+        print(f"   report wall {wall:.2f} s{verdicts}, peak memory {peak:.0f} MB; sweep and report {sweep_wall + wall:.2f} s"
+              f"   {against(sweep_wall + wall, 'table4+report', quick)}")
 
         n_jobs = 10 if quick else 200
         print(f"\n3b. a sweep of {n_jobs} jobs of one seed and 0.2 s each (per-job overhead)")
         with measuring(f"a sweep of {n_jobs} jobs"):
-            wall, peak = _ddmr(["run", "-m", "run.n_runs=1", "simulation.duration=0.2",
+            wall, peak, _ = _ddmr(["run", "-m", "run.n_runs=1", "simulation.duration=0.2",
                                 f"run.base_seed=range(0,{n_jobs})", "run.plots=false", "run.progress=false",
                                 f"hydra.sweep.dir={work / 'jobs'}"], work)
         print(f"   wall {wall:.2f} s, {1000 * wall / n_jobs:.0f} ms a job in all, peak memory per process {peak:.0f} MB"
@@ -281,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         n_seeds = 100 if quick else 10_000
         print(f"\n4. one {n_seeds}-seed scenario-1 run of 15 s (metrics only)")
         with measuring(f"a run of {n_seeds:,} seeds"):
-            wall, peak = _ddmr(["run", f"run.n_runs={n_seeds}", "run.keep_series=[]", "run.plots=false",
+            wall, peak, _ = _ddmr(["run", f"run.n_runs={n_seeds}", "run.keep_series=[]", "run.plots=false",
                                 "run.progress=false", f"hydra.run.dir={work / 'many'}", *extra], work)
         print(f"   wall {wall:.2f} s, peak memory {peak:.0f} MB   (target < 200 MB for 10,000 seeds)")
     finally:
