@@ -7,7 +7,8 @@ own (``tests/test_compat.py``), so a release that moves a symbol fails that test
 Hydra
     ddmr reaches into Hydra where its public API has no equivalent: composing a sweep's jobs from one composition
     (its loader's override application and its repository), naming job dirs exactly as Hydra will, expanding a
-    sweep as its basic sweeper does, and locating a ``_target_`` class without Hydra's error log line.
+    sweep as its basic sweeper does, locating a ``_target_`` class without Hydra's error log line, and running
+    Hydra's per-job work outside a launcher (``ddmr bench`` times it: :func:`run_hydra_job`).
     :data:`HYDRA_SUPPORTED`: the ``major.minor`` releases these wrappers are written for (``hydra-core>=1.3.2,<1.4``
     in ``pyproject.toml``). :func:`check_hydra` raises :class:`~ddmr_cli.errors.DDMRError` on another release.
 
@@ -142,6 +143,23 @@ def locate(path: str) -> Any:
     return _locate(path)
 
 
+def run_hydra_job(task: Callable[[Any], Any], cfg) -> Any:
+    """Hydra's own per-job work around ``task``, as every launcher runs a job (``hydra.core.utils.run_job``:
+    the config copies, ``HydraConfig`` set for the job and restored after it, the job's
+    ``.hydra/{config,hydra,overrides}.yaml``),
+    outside a launcher: ``cfg`` is a composed job config with its ``hydra`` node (``hydra.sweep.dir`` and
+    ``hydra.sweep.subdir`` name the job's dir), no callbacks (``hydra._internal.callbacks.Callbacks``), Hydra's
+    logging left as it is. Returns what ``task`` returned (raises what it raised). What ``ddmr bench`` times as the
+    floor of a job."""
+    from hydra._internal.callbacks import Callbacks
+    from hydra.core.utils import run_job
+    from hydra.types import HydraContext
+
+    context = HydraContext(config_loader=None, callbacks=Callbacks())
+    ret = run_job(task, cfg, "hydra.sweep.dir", "hydra.sweep.subdir", context, configure_logging=False)
+    return ret.return_value
+
+
 def config_repository(loader) -> Any:
     """The config repository of a Hydra config loader (``group_exists``, ``get_group_options``):
     ``ConfigLoaderImpl.repository``."""
@@ -195,6 +213,6 @@ def was_enqueued(trial: Any) -> bool:
     return ENQUEUED_ATTR in trial.system_attrs
 
 
-__all__ = ["HYDRA_SUPPORTED", "check_hydra", "apply_overrides", "overrides_dirname", "basic_sweeper",
+__all__ = ["HYDRA_SUPPORTED", "check_hydra", "apply_overrides", "overrides_dirname", "basic_sweeper", "run_hydra_job",
            "split_sweep", "locate", "config_repository",
            "OPTUNA_MIN", "KILLED_ATTR", "ENQUEUED_ATTR", "require_optuna", "mark_killed", "was_enqueued"]

@@ -318,3 +318,11 @@ def test_bench_times_the_line_a_command_prints_its_answer_with(tmp_path):
     wall, peak, marked = _ddmr(["run", "--help"], tmp_path, mark="ddmr run")
     assert marked is not None and 0 < marked <= wall and peak > 0
     assert _ddmr(["--help"], tmp_path, mark="no such line")[2] is None
+
+
+def test_bench_times_hydras_own_work_per_job():
+    """The floor under section 3b: Hydra's run_job around a task that does nothing, timed per job."""
+    from ddmr_cli.cli.bench import hydra_job_floor
+
+    low, median = hydra_job_floor(3)
+    assert 0 < low <= median < 10_000

@@ -96,3 +96,27 @@ def test_a_worker_scans_hydras_plugins_once():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "scanned once:" in done.stdout
+
+
+def test_run_hydra_job_is_hydras_per_job_work(tmp_path):
+    """run_hydra_job runs a task as Hydra's launchers do: the task gets the config without its hydra node, and the
+    job's dir gets Hydra's three .hydra files."""
+    from hydra.core.hydra_config import HydraConfig
+
+    from ddmr_cli.config import compose_config
+
+    before = HydraConfig.instance().cfg
+    cfg = compose_config(["run.n_runs=1", "run.plots=false"], return_hydra_config=True)
+    cfg.hydra.sweep.dir, cfg.hydra.sweep.subdir = str(tmp_path), "job0"
+    seen = compat.run_hydra_job(lambda task_cfg: ("hydra" in task_cfg, int(task_cfg.run.n_runs)), cfg)
+    assert seen == (False, 1)
+    assert sorted(p.name for p in (tmp_path / "job0" / ".hydra").iterdir()) == ["config.yaml", "hydra.yaml",
+                                                                               "overrides.yaml"]
+    assert OmegaConf.load(tmp_path / "job0" / ".hydra" / "config.yaml").run.n_runs == 1
+    assert HydraConfig.instance().cfg is before  # restored as it was
+
+    def failing(task_cfg):
+        raise ValueError("boom")
+
+    with pytest.raises(Exception, match="boom"):
+        compat.run_hydra_job(failing, cfg)

@@ -8,8 +8,9 @@ Prints the machine line, then
    target: the engine at most 1.5x slower at equal work); on every core, as plain Python (the fallback), and the
    compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
-3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it; 3b. of a 200-job sweep of
-   one-seed 0.2 s runs (the per-job overhead);
+3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it (and when the report printed
+   its verdicts); 3b. of a 200-job sweep of one-seed 0.2 s runs (the per-job overhead), and Hydra's own work per
+   job, the floor under it (:func:`hydra_job_floor`);
 4. wall time and peak memory of one 10,000-seed scenario-1 run (metrics only);
 5. the cost of a control step per controller: ns of its laws alone, operation counts and a Cortex-M4F estimate
    (:mod:`ddmr_cli.bench.cost`; printed after section 1 when ``--skip-e2e``).
@@ -146,6 +147,31 @@ def thread_scaling(batch: int, controller: str, duration: float,
     one, many = _alternating(repeats, lambda: engine_throughput(batch, controller, duration, threads=1),
                              lambda: engine_throughput(batch, controller, duration, threads=0))
     return statistics.median(one), statistics.median(many), statistics.median(m / o for o, m in zip(one, many))
+
+
+def hydra_job_floor(repeats: int) -> tuple[float, float]:
+    """Hydra's own work per job in ms of one core, min and median of ``repeats``: ``hydra.core.utils.run_job``
+    (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files) around a task
+    that does nothing (:func:`ddmr_cli.compat.run_hydra_job`), on section 3b's job config, in this process."""
+    import statistics
+
+    from ddmr_cli import compat
+    from ddmr_cli.config import compose_config
+
+    import copy
+
+    base = compose_config(["run.n_runs=1", "simulation.duration=0.2", "run.plots=false", "run.progress=false"],
+                          return_hydra_config=True)
+    times = []
+    with tempfile.TemporaryDirectory(prefix="ddmr-bench-") as tmp:
+        base.hydra.sweep.dir = tmp
+        for i in range(repeats + 1):  # the first one warms up
+            cfg = copy.deepcopy(base)  # a job's own config (Hydra makes the one it ran read-only)
+            cfg.hydra.sweep.subdir = str(i)
+            started = time.perf_counter()
+            compat.run_hydra_job(lambda task_cfg: None, cfg)
+            times.append(1000.0 * (time.perf_counter() - started))
+    return min(times[1:]), statistics.median(times[1:])
 
 
 def python_throughput(controller: str, duration: float) -> float:
@@ -296,6 +322,12 @@ def main(argv: list[str] | None = None) -> int:
                                 f"hydra.sweep.dir={work / 'jobs'}"], work)
         print(f"   wall {wall:.2f} s, {1000 * wall / n_jobs:.0f} ms a job in all, peak memory per process {peak:.0f} MB"
               f"   {against(wall / n_jobs, 'job', quick)}")
+        with measuring("Hydra's own work per job"):
+            low, median = hydra_job_floor(10 if quick else 30)
+        cores = os.cpu_count() or 1
+        print(f"   Hydra's own work per job (hydra.core.utils.run_job around a task that does nothing: its config copies "
+              f"and the job's three .hydra files): {low:.0f} ms min, {median:.0f} ms median of one core, so at least "
+              f"{low / cores:.0f} ms a job on {cores} cores before any of ddmr's own work")
 
         n_seeds = 100 if quick else 10_000
         print(f"\n4. one {n_seeds}-seed scenario-1 run of 15 s (metrics only)")
