@@ -349,6 +349,16 @@ def test_every_other_controller_is_a_baseline_judged_against_smc_ndo_nno():
     md = V.markdown(data, V.evaluate(data))
     assert "SMC-NDO-NNO: less chattering (total variation of u) than STA-NDO (not a paper claim)" in md
     assert "SMC-NDO-NNO: lower deviation MAE than ADRC" in md
+    # what `ddmr report` prints first: the paper's claims one by one, the baselines counted on one line
+    results = V.evaluate(data)
+    lines = V.answer_lines(data, results)
+    assert not any("not a paper claim" in line for line in lines)
+    n_paper = sum(len(c.overall) for c in results if c.claim.kind != "baseline")
+    assert len(lines) == n_paper + 1
+    verdicts = sorted(category(v) for c in results if c.claim.kind == "baseline" for v in c.overall.values())
+    assert verdicts == sorted([FAILS, HOLDS, TIE, TIE])  # STA: deviation, chattering; ADRC: both equal
+    assert lines[-1] == ("SMC-NDO-NNO against 2 baseline controller(s), not the paper's claims: 4 comparisons, "
+                         "1 holds, 1 does not hold, 2 tie (each in the report)")
 
 
 def test_the_claims_on_both_plants_stand_side_by_side_and_the_changes_are_named():

@@ -23,7 +23,8 @@ def build_report(path, out=None, margin=None, figures: bool = True, progress: bo
     on a reference other than the paper's line gets its summary figures only, unless ``all_figures``.
     ``progress``: a bar with an ETA on stderr (a plain line every 10 s when stderr is not a terminal).
     ``on_verdicts``: called with the verdicts on the paper's claims in plain text, one line per claim, scenario and
-    reading, as soon as they are known (before the figures are drawn; not called when no claim could be checked).
+    reading, then one line counting the comparisons against baseline controllers by verdict, as soon as they are
+    known (before the figures are drawn; not called when no claim could be checked).
 
     Raises
     ------

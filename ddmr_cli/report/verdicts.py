@@ -10,6 +10,7 @@ first (:attr:`ClaimResult.metrics`), and the report prints every one side by sid
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 
 from ddmr_cli.engine.metrics import METRICS
@@ -479,17 +480,25 @@ def summary_line(data: ReportData, c: ClaimResult, scenario: str, reading: str, 
 
 
 def answer_lines(data: ReportData, results: list[ClaimResult]) -> list[str]:
-    """The verdicts in plain text, one line per claim, scenario and NNO reading: the verdict on each metric the
-    claim is judged on, the one its overall verdict rests on first (the Summary of :func:`markdown` without its
-    numbers or reasons). What ``ddmr report`` prints as soon as the verdicts are known, before the figures are
-    drawn; none when no claim could be checked."""
-    lines = []
+    """The verdicts in plain text: one line per paper claim, scenario and NNO reading, with the verdict on each
+    metric the claim is judged on, the one its overall verdict rests on first (the Summary of :func:`markdown`
+    without its numbers or reasons); then one line counting the comparisons against the baselines, which are not
+    the paper's claims, by verdict. What ``ddmr report`` prints as soon as the verdicts are known, before the
+    figures are drawn; none when no claim could be checked."""
+    lines, others = [], Counter()
     for c in results:
-        for scenario, reading in c.overall:
+        for (scenario, reading), overall in c.overall.items():
+            if c.claim is not None and c.claim.kind == BASELINE:
+                others[category(overall)] += 1
+                continue
             label = next(j.display.label for j in data.jobs if j.controller == reading)
             on = [f"{category(c.by_metric[(scenario, reading, m)])} on the {metric_name(m)}"
                   for m in c.metrics if (scenario, reading, m) in c.by_metric]
             lines.append(f"{c.title} [{scenario}, {label}]: " + "; ".join(on))
+    if others:
+        counts = ", ".join(f"{others[v]} {v}" for v in VERDICT_RULES if others[v])
+        lines.append(f"SMC-NDO-NNO against {len(baselines(data))} baseline controller(s), not the paper's claims: "
+                     f"{sum(others.values())} comparisons, {counts} (each in the report)")
     return lines
 
 
