@@ -153,12 +153,11 @@ def hydra_job_floor(repeats: int) -> tuple[float, float]:
     """Hydra's own work per job in ms of one core, min and median of ``repeats``: ``hydra.core.utils.run_job``
     (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files) around a task
     that does nothing (:func:`ddmr_cli.compat.run_hydra_job`), on section 3b's job config, in this process."""
+    import copy
     import statistics
 
     from ddmr_cli import compat
     from ddmr_cli.config import compose_config
-
-    import copy
 
     base = compose_config(["run.n_runs=1", "simulation.duration=0.2", "run.plots=false", "run.progress=false"],
                           return_hydra_config=True)
@@ -239,9 +238,6 @@ def _ddmr(args: list[str], cwd: Path, mark: str | None = None) -> tuple[float, f
     return wall, usage.ru_maxrss / 1024.0, (marked[0] if marked else None)
 
 
-#: the line ``ddmr report`` starts its verdicts with (``cli/reporting.py``): when the answer is there
-VERDICTS_MARK = "ddmr: verdicts on"
-
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="ddmr bench", description=__doc__.split("\n\n")[0])
@@ -308,8 +304,11 @@ def main(argv: list[str] | None = None) -> int:
                                 "run.progress=false", *extra], work)
         print(f"   sweep wall {wall:.2f} s, peak memory per process {peak:.0f} MB   {against(wall, 'table4', quick)}")
         sweep_wall = wall
+        from ddmr_cli.cli.reporting import VERDICTS_HEADER
+
         with measuring("its report"):
-            wall, peak, answer = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work, VERDICTS_MARK)
+            wall, peak, answer = _ddmr(["report", str(sweep_dir), "--out", str(work / "report")], work,
+                                       VERDICTS_HEADER)
         verdicts = f" (its verdicts printed after {answer:.2f} s)" if answer is not None else ""
         print(f"   report wall {wall:.2f} s{verdicts}, peak memory {peak:.0f} MB; sweep and report {sweep_wall + wall:.2f} s"
               f"   {against(sweep_wall + wall, 'table4+report', quick)}")

@@ -42,12 +42,15 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
     return 0
 
 
+#: the line ``ddmr report`` prints its verdicts under (``ddmr bench`` times when it appears)
+VERDICTS_HEADER = "ddmr: verdicts on the paper's claims (rules, numbers and figures in the report):"
+
+
 def _say_verdicts(lines: list[str]) -> None:
     """The verdicts on stdout as soon as the report knows them (the figures are drawn after): the answer first."""
     from ddmr_cli.progress import say
 
-    say(["ddmr: verdicts on the paper's claims (rules, numbers and figures in the report):",
-         *(f"  {line}" for line in lines)])
+    say([VERDICTS_HEADER, *(f"  {line}" for line in lines)])
 
 
 def _latest_sweep(root: Path) -> Path | None:

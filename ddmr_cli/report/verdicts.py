@@ -470,13 +470,23 @@ def _numbers(c: ClaimResult, scenario: str, reading: str, metric: str) -> str:
         f"; claimed: {c.claimed})" if c.claimed else ")")
 
 
+def _judged(c: ClaimResult, scenario: str, reading: str) -> list[tuple[str, str]]:
+    """(metric, verdict) of a claim in one scenario and reading, in the claim's metric order (the one its overall
+    verdict rests on first)."""
+    return [(m, c.by_metric[(scenario, reading, m)]) for m in c.metrics if (scenario, reading, m) in c.by_metric]
+
+
+def _reading_label(data: ReportData, reading: str) -> str:
+    """The label of the controller an NNO reading names (the controller's, not a job's)."""
+    return next(j.display.label for j in data.jobs if j.controller == reading)
+
+
 def summary_line(data: ReportData, c: ClaimResult, scenario: str, reading: str, title: bool = True) -> str:
     """One claim in one scenario and reading: its verdict on each of its metrics, side by side, with the numbers."""
-    parts = [f"on the {metric_name(m)}: {_bold(c.by_metric[(scenario, reading, m)])}{_numbers(c, scenario, reading, m)}"
-             for m in c.metrics if (scenario, reading, m) in c.by_metric]
+    parts = [f"on the {metric_name(m)}: {_bold(verdict)}{_numbers(c, scenario, reading, m)}"
+             for m, verdict in _judged(c, scenario, reading)]
     head = f"{c.title} — " if title else ""
-    label = next(j.display.label for j in data.jobs if j.controller == reading)  # the controller's, not a job's
-    return f"- {head}{scenario}, {label}: " + "; ".join(parts)
+    return f"- {head}{scenario}, {_reading_label(data, reading)}: " + "; ".join(parts)
 
 
 def answer_lines(data: ReportData, results: list[ClaimResult]) -> list[str]:
@@ -491,10 +501,8 @@ def answer_lines(data: ReportData, results: list[ClaimResult]) -> list[str]:
             if c.claim is not None and c.claim.kind == BASELINE:
                 others[category(overall)] += 1
                 continue
-            label = next(j.display.label for j in data.jobs if j.controller == reading)
-            on = [f"{category(c.by_metric[(scenario, reading, m)])} on the {metric_name(m)}"
-                  for m in c.metrics if (scenario, reading, m) in c.by_metric]
-            lines.append(f"{c.title} [{scenario}, {label}]: " + "; ".join(on))
+            on = [f"{category(verdict)} on the {metric_name(m)}" for m, verdict in _judged(c, scenario, reading)]
+            lines.append(f"{c.title} [{scenario}, {_reading_label(data, reading)}]: " + "; ".join(on))
     if others:
         counts = ", ".join(f"{others[v]} {v}" for v in VERDICT_RULES if others[v])
         lines.append(f"SMC-NDO-NNO against {len(baselines(data))} baseline controller(s), not the paper's claims: "
