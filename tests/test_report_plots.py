@@ -81,6 +81,35 @@ def test_save_writes_a_png_and_closes(tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not plt.fignum_exists(fig.number)
 
+def _two_panels(plt):
+    fig, axes = plt.subplots(2, 1, figsize=(5, 4))
+    for k, ax in enumerate(axes):
+        ax.plot(np.linspace(0, 10, 200), np.sin(np.linspace(0, 10, 200)) * 10 ** (3 * k), label=f"line {k}")
+        ax.set_ylabel(f"a long label, panel {k} [unit]")
+        ax.set_title(f"panel {k}")
+        ax.legend(loc="upper right")
+    return fig
+
+
+def test_save_lays_out_once_and_draws_once_with_the_pixels_of_a_plain_tight_layout(tmp_path):
+    """``save`` removes the placeholder engine ``tight_layout`` leaves, so ``savefig`` does not draw the whole figure
+    once more without rendering: one draw per save, and the same pixels as ``tight_layout`` + ``savefig``."""
+    import matplotlib.image as mpimg
+
+    plt = P.pyplot()
+    fig = _two_panels(plt)
+    drawn = []
+    original_draw = fig.draw
+    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    P.save(fig, tmp_path / "ours.png")
+    assert len(drawn) == 1
+    fig = _two_panels(plt)
+    fig.tight_layout()
+    fig.savefig(tmp_path / "plain.png", format="png", dpi=P.DPI, pil_kwargs={"compress_level": P.PNG_COMPRESSION})
+    plt.close(fig)
+    ours, plain = mpimg.imread(tmp_path / "ours.png"), mpimg.imread(tmp_path / "plain.png")
+    assert ours.shape == plain.shape and np.array_equal(ours, plain)
+
 
 def test_run_plots_use_the_shared_helpers(tmp_path):
     from ddmr_cli.plots.run import run_plots
