@@ -13,7 +13,7 @@ from ddmr_cli.config import compose_config, skeleton_cache
 from ddmr_cli.config.compose_once import compositions_once
 
 KEY = ("config", (("hydra", "pkg://hydra.conf"), ("main", "pkg://ddmr_cli.conf"), ("schema", "structured://")),
-       "/some/dir", ("controller=pid",))
+       ("controller=pid",))
 
 
 @pytest.fixture
@@ -39,11 +39,10 @@ def test_a_composition_is_made_once_then_loaded_as_it_was(cache):
     again, loaded_again = skeleton_cache.cached_composition(KEY, False, compose)
     assert (loaded, loaded_again, len(calls)) == (False, True, 1)
     assert again == first and len(list(cache.glob("*.pkl"))) == 1
-    # another mode, another working dir or other overrides: another entry
+    # another mode or other overrides: another entry
     skeleton_cache.cached_composition(KEY, True, compose)
-    skeleton_cache.cached_composition((*KEY[:2], "/other", KEY[3]), False, compose)
-    skeleton_cache.cached_composition((*KEY[:3], ("controller=smc",)), False, compose)
-    assert len(calls) == 4 and len(list(cache.glob("*.pkl"))) == 4
+    skeleton_cache.cached_composition((*KEY[:2], ("controller=smc",)), False, compose)
+    assert len(calls) == 3 and len(list(cache.glob("*.pkl"))) == 3
 
 
 def test_a_damaged_file_is_composed_again_and_replaced(cache):
@@ -58,7 +57,7 @@ def test_a_damaged_file_is_composed_again_and_replaced(cache):
 
 def test_a_user_config_dir_or_the_switch_is_never_cached(cache, monkeypatch):
     compose, calls = _made()
-    user = ("config", (("main", "file:///home/me/conf"),), "/d", ())
+    user = ("config", (("main", "file:///home/me/conf"),), ())
     skeleton_cache.cached_composition(user, False, compose)
     skeleton_cache.cached_composition(user, False, compose)
     monkeypatch.setenv(skeleton_cache.SWITCH, "0")
@@ -110,3 +109,40 @@ def test_a_loaded_composition_equals_hydras(cache, overrides, monkeypatch):
     finally:
         del os.environ[skeleton_cache.SWITCH]
     assert results[0] == hydra_own and results[1] == hydra_own
+
+
+def _hydras_own(overrides) -> dict:
+    import os
+
+    os.environ[skeleton_cache.SWITCH] = "0"
+    try:
+        return OmegaConf.to_container(compose_config(overrides, return_hydra_config=True))
+    finally:
+        del os.environ[skeleton_cache.SWITCH]
+
+
+def test_a_composition_made_in_one_directory_serves_another_as_hydra_composes_there(cache, tmp_path, monkeypatch):
+    """The working dir is not part of the key: a process in another directory loads the kept composition, and gets
+    what Hydra composes there (``hydra.runtime.cwd`` that directory), as do the variables of
+    ``hydra.job.env_copy``, read from the loading process's environment."""
+    overrides = ["controller=pid", "hydra.job.env_copy=[DDMR_TEST_COPIED]"]
+    one, other = tmp_path / "one", tmp_path / "other"
+    one.mkdir(), other.mkdir()
+    real, loaded = skeleton_cache.cached_composition, []
+
+    def recording(*args):
+        kept, was_loaded = real(*args)
+        loaded.append(was_loaded)
+        return kept, was_loaded
+
+    monkeypatch.setattr(skeleton_cache, "cached_composition", recording)
+    results = []
+    for directory, value in ((one, "first"), (other, "second")):
+        monkeypatch.chdir(directory)
+        monkeypatch.setenv("DDMR_TEST_COPIED", value)
+        with compositions_once():
+            results.append(OmegaConf.to_container(compose_config(overrides, return_hydra_config=True)))
+        assert results[-1] == _hydras_own(overrides)
+        assert results[-1]["hydra"]["runtime"]["cwd"] == str(directory)
+        assert results[-1]["hydra"]["job"]["env_set"]["DDMR_TEST_COPIED"] == value
+    assert loaded == [False, True]  # composed in the first directory, loaded in the second

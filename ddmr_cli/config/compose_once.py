@@ -156,8 +156,9 @@ def _hydra_value(o) -> bool:
 
 
 class CompositionMemo(OverrideParser):
-    """Whole compositions of one process, each kept pickled, by (config name, search path, working dir) and the
-    overrides that are not values of the ``hydra`` node (see the module docstring).
+    """Whole compositions of one process, each kept pickled, by (config name, search path) and the overrides that
+    are not values of the ``hydra`` node (see the module docstring); what a composition records of the process
+    (its working dir, copied environment variables) is set on each copy (:func:`_record_process`).
 
     A composition is made without the call's values of the ``hydra`` node (``hydra.run.dir=...``,
     ``hydra.mode=RUN``); each call gets a copy with its own applied, in their order, as Hydra's loader applies
@@ -174,8 +175,6 @@ class CompositionMemo(OverrideParser):
              from_shell: bool = True, validate_sweep_overrides: bool = True) -> DictConfig:
         """``loader.load_configuration(...)``, composed by ``compose`` (the loader's own method) only when no
         kept composition serves the call."""
-        import os
-
         from hydra.core.utils import JobRuntime
         from hydra.types import RunMode
 
@@ -183,8 +182,7 @@ class CompositionMemo(OverrideParser):
 
         parsed = self.parse(list(overrides))
         core = tuple(o.input_line for o in parsed if not _hydra_value(o))
-        key = (config_name, tuple((e.provider, e.path) for e in loader.get_search_path().get_path()), os.getcwd(),
-               core)
+        key = (config_name, tuple((e.provider, e.path) for e in loader.get_search_path().get_path()), core)
         multirun = run_mode == RunMode.MULTIRUN
         kept = self._kept.get(key)
         if kept is None or (kept[0] and not multirun):
@@ -209,7 +207,24 @@ class CompositionMemo(OverrideParser):
         cfg.hydra.overrides.hydra = [o.input_line for o in parsed if o.is_hydra_override()]
         if derived_name:  # Hydra names the job after the program composing it, unless the config names it
             cfg.hydra.job.name = JobRuntime().get("name")
+        _record_process(cfg)
         return cfg
+
+
+def _record_process(cfg: DictConfig) -> None:
+    """What Hydra's loader records of the composing process (``ConfigLoaderImpl._load_configuration_impl``), set
+    again on a kept composition: the working dir (``hydra.runtime.cwd``) and the variables of
+    ``hydra.job.env_copy`` (into ``hydra.job.env_set``, after the call's own ``hydra.job.env_copy=[...]``).
+    Nothing else of a composition depends on the process, so a composition kept by one directory or process
+    serves every other (:mod:`ddmr_cli.config.skeleton_cache`)."""
+    import os
+
+    from omegaconf import open_dict
+
+    cfg.hydra.runtime.cwd = os.getcwd()
+    with open_dict(cfg.hydra):
+        for name in cfg.hydra.job.env_copy:
+            cfg.hydra.job.env_set[name] = os.environ[name]
 
 
 @contextlib.contextmanager

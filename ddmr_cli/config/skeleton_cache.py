@@ -7,8 +7,10 @@ overrides, the search path and the config it reads, so it is kept, pickled, in d
 (``$DDMR_CACHE_DIR/skeletons``, beside the compiled step loops) under a name that hashes everything it was
 composed from:
 
-- the config name, the search path, the working directory (Hydra records it in ``hydra.runtime.cwd``), the
-  overrides that are not values of the ``hydra`` node, and whether it was composed for a multirun;
+- the config name, the search path, the overrides that are not values of the ``hydra`` node, and whether it
+  was composed for a multirun (not the working directory: what a composition records of its process, Hydra's
+  ``hydra.runtime.cwd`` and ``hydra.job.env_set``, is set again on each load, so a composition made in one
+  directory serves a run in another);
 - every file of each packaged source of the search path (``pkg://ddmr_cli.conf``, ``pkg://hydra.conf``: name and
   bytes) and the schema module that registers the structured configs (``ddmr_cli/config/schema.py``);
 - the Python, Hydra and OmegaConf versions and the ``hydra_plugins`` modules installed.
@@ -88,11 +90,11 @@ def _files(node, prefix: str = ""):
 
 def cached_composition(key: tuple, multirun: bool, compose: Callable[[], tuple]) -> tuple[tuple, bool]:
     """A whole composition of :class:`~ddmr_cli.config.compose_once.CompositionMemo` (``compose()``: the kept
-    tuple, its config pickled) from ddmr's cache when a process made it before from the same config, search path,
-    working dir and overrides (``key``) for the same mode; else ``compose()``, saved for the next. Returns the
+    tuple, its config pickled) from ddmr's cache when a process made it before from the same config, search path
+    and overrides (``key``) for the same mode; else ``compose()``, saved for the next. Returns the
     tuple and whether it was loaded. Only a search path of packaged sources (``pkg://``: ddmr's config, Hydra's,
     its plugins'; ``structured://``: the schemas) is cached: a user's config dir composes as Hydra does."""
-    _, search_path, _, _ = key
+    _, search_path, _ = key
     if not enabled() or any(not str(path).startswith(("pkg://", "structured://")) for _, path in search_path):
         return compose(), False
     from ddmr_cli.engine.kernels import cache_dir
