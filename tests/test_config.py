@@ -322,6 +322,11 @@ MEMO_CALLS = [
      (["run.n_runs=3", "hydra.run.dir=/tmp/ddmr-x", "hydra.mode=RUN"], "RUN")],
     [(["hydra.run.dir=/tmp/ddmr-y", "controller=pid", "hydra.job.chdir=false"], "RUN"),
      (["controller=pid", "hydra.job.chdir=false", "hydra.run.dir=/tmp/ddmr-z"], "RUN")],
+    # one composition for other values: of the job, added, and of the hydra node that override_dirname reads
+    [(["controller=smc", "controller.lam=7"], "RUN"),
+     (["controller=smc", "run.n_runs=3", "+run.note=x", "hydra.job.config.override_dirname.exclude_keys=[run.n_runs]",
+       "hydra.run.dir=/tmp/ddmr-${hydra.job.override_dirname}"], "RUN"),
+     (["run.n_runs=4", "controller=smc"], "MULTIRUN")],
     [(["launcher=basic", "controller=smc,pid", "run.n_runs=2"], "MULTIRUN"),
      (["launcher=basic", "controller=smc,pid", "run.n_runs=2", "hydra.sweep.dir=/tmp/s", "hydra.mode=MULTIRUN"],
       "MULTIRUN")],
@@ -378,6 +383,13 @@ def test_one_composition_per_process_refuses_what_hydra_refuses():
         loader.load_configuration("config", overrides=[], run_mode=RunMode.RUN)
         with pytest.raises((HydraException, OmegaConfBaseException)):
             loader.load_configuration("config", overrides=["hydra.run.dri=x"], run_mode=RunMode.RUN)
+    with pytest.raises(HydraException) as hydras:
+        loader.load_configuration("config", overrides=["run.n_run=3"], run_mode=RunMode.RUN)
+    with compositions_once():
+        loader.load_configuration("config", overrides=["run.n_runs=3"], run_mode=RunMode.RUN)
+        with pytest.raises(HydraException) as ours:  # a value that is no key, on the kept composition
+            loader.load_configuration("config", overrides=["run.n_run=3"], run_mode=RunMode.RUN)
+    assert type(ours.value) is type(hydras.value) and str(ours.value) == str(hydras.value)
 
 
 @pytest.mark.parametrize("overrides, n_jobs, work, expected", [

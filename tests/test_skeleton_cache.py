@@ -23,6 +23,19 @@ def cache(tmp_path, monkeypatch):
     return tmp_path / "skeletons"
 
 
+def _recording_loads(monkeypatch) -> list[bool]:
+    """Whether each kept composition asked of the cache was loaded (True) or composed (False), in order."""
+    real, loaded = skeleton_cache.cached_composition, []
+
+    def recording(*args):
+        kept, was_loaded = real(*args)
+        loaded.append(was_loaded)
+        return kept, was_loaded
+
+    monkeypatch.setattr(skeleton_cache, "cached_composition", recording)
+    return loaded
+
+
 def _made(value="a"):
     calls = []
 
@@ -88,26 +101,13 @@ def test_an_edit_of_any_config_file_changes_the_key(monkeypatch):
 def test_a_loaded_composition_equals_hydras(cache, overrides, monkeypatch):
     """Through the CLI's memo: the first process composes and keeps it, a second (a new memo) loads it; both equal
     Hydra's own composition with the cache off."""
-    real, loaded = skeleton_cache.cached_composition, []
-
-    def recording(*args):
-        kept, was_loaded = real(*args)
-        loaded.append(was_loaded)
-        return kept, was_loaded
-
-    monkeypatch.setattr(skeleton_cache, "cached_composition", recording)
+    loaded = _recording_loads(monkeypatch)
     results = []
     for _ in range(2):
         with compositions_once():
             results.append(OmegaConf.to_container(compose_config(overrides, return_hydra_config=True)))
     assert loaded == [False, True]  # composed by the first memo, loaded by the second
-    import os
-
-    os.environ[skeleton_cache.SWITCH] = "0"
-    try:
-        hydra_own = OmegaConf.to_container(compose_config(overrides, return_hydra_config=True))
-    finally:
-        del os.environ[skeleton_cache.SWITCH]
+    hydra_own = _hydras_own(overrides)
     assert results[0] == hydra_own and results[1] == hydra_own
 
 
@@ -128,14 +128,7 @@ def test_a_composition_made_in_one_directory_serves_another_as_hydra_composes_th
     overrides = ["controller=pid", "hydra.job.env_copy=[DDMR_TEST_COPIED]"]
     one, other = tmp_path / "one", tmp_path / "other"
     one.mkdir(), other.mkdir()
-    real, loaded = skeleton_cache.cached_composition, []
-
-    def recording(*args):
-        kept, was_loaded = real(*args)
-        loaded.append(was_loaded)
-        return kept, was_loaded
-
-    monkeypatch.setattr(skeleton_cache, "cached_composition", recording)
+    loaded = _recording_loads(monkeypatch)
     results = []
     for directory, value in ((one, "first"), (other, "second")):
         monkeypatch.chdir(directory)
@@ -146,3 +139,14 @@ def test_a_composition_made_in_one_directory_serves_another_as_hydra_composes_th
         assert results[-1]["hydra"]["runtime"]["cwd"] == str(directory)
         assert results[-1]["hydra"]["job"]["env_set"]["DDMR_TEST_COPIED"] == value
     assert loaded == [False, True]  # composed in the first directory, loaded in the second
+
+
+def test_a_composition_kept_for_some_values_serves_others(cache, monkeypatch):
+    """A single run with other values loads the composition another made (the key is the defaults tree), and gets
+    Hydra's own composition of its own overrides."""
+    loaded = _recording_loads(monkeypatch)
+    for overrides in (["controller=smc", "run.n_runs=3"], ["controller.lam=9", "controller=smc", "run.plots=false"]):
+        with compositions_once():
+            ours = OmegaConf.to_container(compose_config(overrides, return_hydra_config=True))
+        assert ours == _hydras_own(overrides)
+    assert loaded == [False, True]

@@ -19,7 +19,9 @@ composition, ``hydra`` node included, for every kind of override.
 validation, Hydra's ``get_mode`` and Hydra's run (or multirun) compose the same config name and overrides, the
 last two with values of the ``hydra`` node added at the end (``hydra.run.dir=...``, ``hydra.mode=RUN``); with
 the memo (:func:`compositions_once`) the first call composes and the others copy its result and
-apply their added values as Hydra would (issue 28: a single run composed three times).
+apply their added values as Hydra would (issue 28: a single run composed three times). It keys a composition by
+its defaults tree, as the skeletons are, so its cache on disk (:mod:`ddmr_cli.config.skeleton_cache`) serves the
+next run with other values too.
 """
 
 from __future__ import annotations
@@ -157,19 +159,36 @@ def _hydra_value(o) -> bool:
 
 class CompositionMemo(OverrideParser):
     """Whole compositions of one process, each kept pickled, by (config name, search path) and the overrides that
-    are not values of the ``hydra`` node (see the module docstring); what a composition records of the process
-    (its working dir, copied environment variables) is set on each copy (:func:`_record_process`).
+    make the defaults tree (see the module docstring); what a composition records of the process (its working dir,
+    copied environment variables) is set on each copy (:func:`_record_process`).
 
-    A composition is made without the call's values of the ``hydra`` node (``hydra.run.dir=...``,
-    ``hydra.mode=RUN``); each call gets a copy with its own applied, in their order, as Hydra's loader applies
-    them after the defaults tree (they set keys of the ``hydra`` node only, which no other override sets), and
-    ``hydra.overrides.hydra`` as Hydra records it; its sweep overrides are checked as Hydra checks them. A
-    composition made for a multirun (Hydra skips missing defaults there) serves only multirun calls; one made for
-    a run serves both."""
+    A composition is made from the call's group choices and overrides of the ``hydra`` node that are not values
+    (:func:`split_overrides`, Hydra's rule): a single run with other values (``controller.lam=7``,
+    ``run.n_runs=3``) or other values of the ``hydra`` node (``hydra.run.dir=...``, ``hydra.mode=RUN``) gets a copy
+    of the same composition with its values applied as Hydra's loader applies them after the defaults tree, and
+    what Hydra derives from the whole list (``hydra.overrides``, ``hydra.job.override_dirname``); its sweep
+    overrides are checked as Hydra checks them. A call with a sweep of values keeps all its overrides but the
+    ``hydra`` node's values in the key. A composition made for a multirun (Hydra skips missing defaults there)
+    serves only multirun calls; one made for a run serves both."""
 
     def __init__(self) -> None:
         super().__init__()
         self._kept: dict[tuple, tuple[bool, bytes, bool]] = {}
+        self._groups: dict[str, bool] = {}
+
+    def _is_group(self, loader, key: str) -> bool:
+        if key not in self._groups:
+            self._groups[key] = config_repository(loader).group_exists(key)
+        return self._groups[key]
+
+    def _tree_and_values(self, loader, parsed: list) -> tuple[tuple[str, ...], list]:
+        """The override lines the composition is made from, and the value overrides applied to each copy."""
+        core = [o for o in parsed if not _hydra_value(o)]
+        split = None if any(o.is_sweep_override() for o in core) else \
+            split_overrides(core, lambda key: self._is_group(loader, key))
+        if split is None:
+            return tuple(o.input_line for o in core), []
+        return tuple(o.input_line for o in split[0]), split[1]
 
     def load(self, loader, compose: Callable[..., DictConfig], config_name, overrides: Sequence[str], run_mode,
              from_shell: bool = True, validate_sweep_overrides: bool = True) -> DictConfig:
@@ -178,18 +197,18 @@ class CompositionMemo(OverrideParser):
         from hydra.core.utils import JobRuntime
         from hydra.types import RunMode
 
-        from ddmr_cli.compat import apply_overrides, check_sweep_overrides
+        from ddmr_cli.compat import apply_overrides, check_sweep_overrides, overrides_dirname
 
         parsed = self.parse(list(overrides))
-        core = tuple(o.input_line for o in parsed if not _hydra_value(o))
-        key = (config_name, tuple((e.provider, e.path) for e in loader.get_search_path().get_path()), core)
+        tree, values = self._tree_and_values(loader, parsed)
+        key = (config_name, tuple((e.provider, e.path) for e in loader.get_search_path().get_path()), tree)
         multirun = run_mode == RunMode.MULTIRUN
         kept = self._kept.get(key)
         if kept is None or (kept[0] and not multirun):
             from ddmr_cli.config.skeleton_cache import cached_composition
 
             def composed() -> tuple[bool, bytes, bool]:
-                cfg = compose(config_name=config_name, overrides=list(core), run_mode=run_mode,
+                cfg = compose(config_name=config_name, overrides=list(tree), run_mode=run_mode,
                               from_shell=from_shell, validate_sweep_overrides=validate_sweep_overrides)
                 derived = str(cfg.hydra.job.get("name")) == str(JobRuntime().get("name"))
                 return multirun, pickle.dumps(cfg, protocol=pickle.HIGHEST_PROTOCOL), derived
@@ -204,7 +223,13 @@ class CompositionMemo(OverrideParser):
         _, blob, derived_name = kept
         cfg = pickle.loads(blob)
         apply_overrides([o for o in parsed if _hydra_value(o)], cfg)
+        apply_overrides(values, cfg)
+        # what Hydra derives from the whole list of overrides (as in _load_configuration_impl)
+        app = [o for o in parsed if not o.is_hydra_override()]
         cfg.hydra.overrides.hydra = [o.input_line for o in parsed if o.is_hydra_override()]
+        cfg.hydra.overrides.task = [o.input_line for o in app]
+        dirname = cfg.hydra.job.config.override_dirname
+        cfg.hydra.job.override_dirname = overrides_dirname(app, dirname.exclude_keys, dirname.item_sep, dirname.kv_sep)
         if derived_name:  # Hydra names the job after the program composing it, unless the config names it
             cfg.hydra.job.name = JobRuntime().get("name")
         _record_process(cfg)

@@ -1,16 +1,17 @@
 """Whole compositions kept on disk between processes (issue 28: compose once, cached).
 
-A ``ddmr run`` composes with Hydra once per distinct set of overrides (:class:`ddmr_cli.config.compose_once.
+A ``ddmr run`` composes with Hydra once per distinct defaults tree (:class:`ddmr_cli.config.compose_once.
 CompositionMemo`): the primary config, and a sweep's skeletons, one per set of group choices (``controller=pid
-scenario=paper_2 ...``, about 0.13 s each; table4's 8 jobs have 8). A composition depends on nothing but its
-overrides, the search path and the config it reads, so it is kept, pickled, in ddmr's cache
-(``$DDMR_CACHE_DIR/skeletons``, beside the compiled step loops) under a name that hashes everything it was
-composed from:
+scenario=paper_2 ...``, about 0.13 s each; table4's 8 jobs have 8); values are applied to a copy. A composition
+depends on nothing but those overrides, the search path and the config it reads, so it is kept, pickled, in
+ddmr's cache (``$DDMR_CACHE_DIR/skeletons``, beside the compiled step loops) under a name that hashes everything
+it was composed from:
 
-- the config name, the search path, the overrides that are not values of the ``hydra`` node, and whether it
-  was composed for a multirun (not the working directory: what a composition records of its process, Hydra's
-  ``hydra.runtime.cwd`` and ``hydra.job.env_set``, is set again on each load, so a composition made in one
-  directory serves a run in another);
+- the config name, the search path, the overrides it was composed from (the group choices and the ``hydra``
+  node's overrides that are not values; every override but the ``hydra`` node's values when the call sweeps a
+  value), and whether it was composed for a multirun. Not the working directory: what a composition records of
+  its process, Hydra's ``hydra.runtime.cwd`` and ``hydra.job.env_set``, is set again on each load, so a
+  composition made in one directory serves a run in another;
 - every file of each packaged source of the search path (``pkg://ddmr_cli.conf``, ``pkg://hydra.conf``: name and
   bytes) and the schema module that registers the structured configs (``ddmr_cli/config/schema.py``);
 - the Python, Hydra and OmegaConf versions and the ``hydra_plugins`` modules installed.
