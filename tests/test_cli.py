@@ -320,6 +320,21 @@ def test_bench_times_the_line_a_command_prints_its_answer_with(tmp_path):
     assert _ddmr(["--help"], tmp_path, mark="no such line")[2] is None
 
 
+def test_bench_reads_a_commands_own_peak_memory_not_the_benchs(tmp_path):
+    """A command's peak memory in `ddmr bench` is its own: with 300 MB more in this process than a `ddmr --help`
+    needs, the command still reads far below this process's size (forked from the bench itself, Linux would count
+    the bench's memory as the command's)."""
+    import resource
+
+    from ddmr_cli.cli.bench import _ddmr
+
+    ballast = np.ones(300 * 2**20 // 8)  # 300 MB, every page touched
+    own_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    wall, peak, _ = _ddmr(["--help"], tmp_path)
+    assert own_mb > 300 and 0 < peak < own_mb - 200 and wall > 0, (own_mb, peak)
+    del ballast
+
+
 def test_bench_times_hydras_own_work_per_job():
     """The floor under section 3b: Hydra's run_job around a task that does nothing, timed per job."""
     from ddmr_cli.cli.bench import hydra_job_floor

@@ -208,17 +208,44 @@ def compile_time() -> tuple[float, float]:
     return cold, warm
 
 
+#: Runs the command named after its first argument, then writes its wall seconds and peak RSS (``wait4``'s
+#: ``ru_maxrss``, KiB) to the file named first, and exits with its status. Linux counts in a child's peak the
+#: memory of the process it was forked from (the image it replaced by ``exec``), so a command forked from the
+#: bench's own process read the bench's 230-270 MB (numba, the engine) as its peak; forked from this small
+#: interpreter (``python -I -S``, about 10 MB) it reads its own.
+_LAUNCHER = """
+import os, sys, time
+report, argv = sys.argv[1], sys.argv[2:]
+started = time.perf_counter()
+pid = os.fork()
+if pid == 0:
+    try:
+        os.execv(argv[0], argv)
+    finally:
+        os._exit(127)
+_, status, usage = os.wait4(pid, 0)
+with open(report, "w") as fh:
+    fh.write(f"{time.perf_counter() - started!r} {usage.ru_maxrss}")
+code = os.waitstatus_to_exitcode(status)
+sys.exit(code if code >= 0 else 128 - code)
+"""
+
+
 def _ddmr(args: list[str], cwd: Path, mark: str | None = None) -> tuple[float, float, float | None]:
     """Run the console script; returns (wall seconds, peak RSS in MB of its largest process: itself or a worker it
-    waited for, from ``wait4`` on this one command, not the peak of every command run before it; the seconds
-    until its stdout first printed a line starting with ``mark``, None without one)."""
+    waited for, read by ``wait4`` in a small launcher the command is forked from (:data:`_LAUNCHER`), so neither
+    the bench's own memory nor a command run before it counts; the seconds until its stdout first printed a line
+    starting with ``mark``, None without one). Both times are the command's own, from its fork (the launcher's
+    start-up, about 20 ms, is not in them)."""
     import threading
 
     exe = shutil.which("ddmr") or str(Path(sys.executable).with_name("ddmr"))
     marked: list[float] = []
     started = time.perf_counter()
-    with tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen([exe, *args], cwd=cwd, stdout=subprocess.PIPE, stderr=err)
+    with tempfile.TemporaryFile() as err, tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp) / "usage"
+        proc = subprocess.Popen([sys.executable, "-I", "-S", "-c", _LAUNCHER, str(report), exe, *args], cwd=cwd,
+                                stdout=subprocess.PIPE, stderr=err)
 
         def read() -> None:  # drains stdout (a full pipe would stop the command), timing the marked line
             for line in proc.stdout:
@@ -227,16 +254,17 @@ def _ddmr(args: list[str], cwd: Path, mark: str | None = None) -> tuple[float, f
 
         reader = threading.Thread(target=read, daemon=True)
         reader.start()
-        _, status, usage = os.wait4(proc.pid, 0)
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        wall = time.perf_counter() - started
+        proc.wait()
+        outside = time.perf_counter() - started
         reader.join()
         proc.stdout.close()
         if proc.returncode != 0:
             err.seek(0)
             raise RuntimeError(f"ddmr {' '.join(args)} failed:\n{err.read().decode(errors='replace')[-2000:]}")
-    return wall, usage.ru_maxrss / 1024.0, (marked[0] if marked else None)
-
+        wall, peak_kib = report.read_text().split()
+    wall = float(wall)
+    launcher = max(outside - wall, 0.0)  # the launcher's own start-up and exit
+    return wall, int(peak_kib) / 1024.0, (max(marked[0] - launcher, 0.0) if marked else None)
 
 
 def main(argv: list[str] | None = None) -> int:
