@@ -81,7 +81,6 @@ class JobComposer:
 
         self.config_name, self.config_dir, self.extra = config_name, config_dir, list(extra)
         self._skeletons = Skeletons()
-        self._groups: dict[str, bool] = {}
 
     def compose(self, overrides: Sequence[str]) -> DictConfig:
         """The job's config, without the hydra node: equal to ``compose_config(overrides + extra)``."""
@@ -106,12 +105,15 @@ class JobComposer:
         return self._skeletons.job(tuple(o.input_line for o in groups), skeleton, values)
 
     def _is_group(self, key: str) -> bool:
-        if key not in self._groups:
-            from hydra.core.global_hydra import GlobalHydra
+        return self._skeletons.is_group(key, _packaged_repository)
 
-            with _initialized():
-                self._groups[key] = config_repository(GlobalHydra.instance().config_loader()).group_exists(key)
-        return self._groups[key]
+
+def _packaged_repository():
+    """Hydra's config repository of ddmr's packaged config."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    with _initialized():
+        return config_repository(GlobalHydra.instance().config_loader())
 
 
 def group_options(group: str) -> list[str]:

@@ -54,10 +54,11 @@ def split_overrides(parsed: Sequence, is_group: Callable[[str], bool]) -> tuple[
 
 class OverrideParser:
     """Hydra's override parser that parses each distinct line once (it takes about 1 ms an override, and the jobs
-    of a sweep share most of their lines)."""
+    of a sweep share most of their lines), and which keys name a config group, each asked of Hydra once."""
 
     def __init__(self) -> None:
         self._parsed: dict[str, object] = {}
+        self._groups: dict[str, bool] = {}
 
     def parse(self, lines: Sequence[str]) -> list:
         """``OverridesParser.create().parse_overrides(lines)``."""
@@ -68,8 +69,28 @@ class OverrideParser:
             self._parsed.update(zip(new, OverridesParser.create().parse_overrides(new)))
         return [self._parsed[line] for line in lines]
 
+    def is_group(self, key: str, repository: Callable[[], object]) -> bool:
+        """Whether ``key`` names a config group of Hydra's config repository ``repository()`` (called the first
+        time a key is asked)."""
+        if key not in self._groups:
+            self._groups[key] = repository().group_exists(key)
+        return self._groups[key]
+
     def __getstate__(self) -> dict:  # pickled to every batch of jobs: the parsed lines stay (they grow with jobs)
         return {**self.__dict__, "_parsed": {}}
+
+
+def set_derived(cfg: DictConfig, parsed: Sequence) -> None:
+    """What Hydra's loader derives from a job's whole list of overrides (``_load_configuration_impl``), set on a
+    composition made from part of it: ``hydra.overrides.hydra`` and ``.task``, and ``hydra.job.override_dirname``
+    under the config's own ``exclude_keys`` and separators."""
+    from ddmr_cli.compat import overrides_dirname
+
+    app = [o for o in parsed if not o.is_hydra_override()]
+    cfg.hydra.overrides.hydra = [o.input_line for o in parsed if o.is_hydra_override()]
+    cfg.hydra.overrides.task = [o.input_line for o in app]
+    dirname = cfg.hydra.job.config.override_dirname
+    cfg.hydra.job.override_dirname = overrides_dirname(app, dirname.exclude_keys, dirname.item_sep, dirname.kv_sep)
 
 
 class Skeletons(OverrideParser):
@@ -103,7 +124,6 @@ class SweepConfigLoader:
     def __init__(self, inner) -> None:
         self.inner = inner
         self._skeletons = Skeletons()
-        self._groups: dict[str, bool] = {}
 
     def __setstate__(self, state: dict) -> None:
         """Unpickled in a launcher's worker, before the job restores Hydra's state (``Singleton.set_state``, which
@@ -120,15 +140,11 @@ class SweepConfigLoader:
         return getattr(self.inner, name)
 
     def _is_group(self, key: str) -> bool:
-        if key not in self._groups:
-            self._groups[key] = config_repository(self.inner).group_exists(key)
-        return self._groups[key]
+        return self._skeletons.is_group(key, lambda: config_repository(self.inner))
 
     def load_sweep_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         """The config of one job: Hydra's ``ConfigLoaderImpl.load_sweep_config``, the same config."""
         from hydra.types import RunMode
-
-        from ddmr_cli.compat import overrides_dirname
 
         overrides = [*OmegaConf.to_container(master_config.hydra.overrides.hydra), *sweep_overrides]
         parsed = self._skeletons.parse(overrides)
@@ -139,11 +155,7 @@ class SweepConfigLoader:
         name = master_config.hydra.job.config_name
         cfg = self._skeletons.job((name, *(o.input_line for o in structure)), lambda: self.inner.load_configuration(
             config_name=name, overrides=[o.input_line for o in structure], run_mode=RunMode.RUN), values)
-        # what Hydra derives from the whole list of overrides (as in _load_configuration_impl)
-        app = [o for o in parsed if not o.is_hydra_override()]
-        cfg.hydra.overrides.task = [o.input_line for o in app]
-        dirname = cfg.hydra.job.config.override_dirname
-        cfg.hydra.job.override_dirname = overrides_dirname(app, dirname.exclude_keys, dirname.item_sep, dirname.kv_sep)
+        set_derived(cfg, parsed)
         OmegaConf.copy_cache(from_config=master_config, to_config=cfg)
         return cfg
 
@@ -174,18 +186,12 @@ class CompositionMemo(OverrideParser):
     def __init__(self) -> None:
         super().__init__()
         self._kept: dict[tuple, tuple[bool, bytes, bool]] = {}
-        self._groups: dict[str, bool] = {}
-
-    def _is_group(self, loader, key: str) -> bool:
-        if key not in self._groups:
-            self._groups[key] = config_repository(loader).group_exists(key)
-        return self._groups[key]
 
     def _tree_and_values(self, loader, parsed: list) -> tuple[tuple[str, ...], list]:
         """The override lines the composition is made from, and the value overrides applied to each copy."""
         core = [o for o in parsed if not _hydra_value(o)]
         split = None if any(o.is_sweep_override() for o in core) else \
-            split_overrides(core, lambda key: self._is_group(loader, key))
+            split_overrides(core, lambda key: self.is_group(key, lambda: config_repository(loader)))
         if split is None:
             return tuple(o.input_line for o in core), []
         return tuple(o.input_line for o in split[0]), split[1]
@@ -197,7 +203,7 @@ class CompositionMemo(OverrideParser):
         from hydra.core.utils import JobRuntime
         from hydra.types import RunMode
 
-        from ddmr_cli.compat import apply_overrides, check_sweep_overrides, overrides_dirname
+        from ddmr_cli.compat import apply_overrides, check_sweep_overrides
 
         parsed = self.parse(list(overrides))
         tree, values = self._tree_and_values(loader, parsed)
@@ -231,12 +237,7 @@ class CompositionMemo(OverrideParser):
                            from_shell=from_shell, validate_sweep_overrides=validate_sweep_overrides)
         apply_overrides([o for o in parsed if _hydra_value(o)], cfg)
         apply_overrides(values, cfg)
-        # what Hydra derives from the whole list of overrides (as in _load_configuration_impl)
-        app = [o for o in parsed if not o.is_hydra_override()]
-        cfg.hydra.overrides.hydra = [o.input_line for o in parsed if o.is_hydra_override()]
-        cfg.hydra.overrides.task = [o.input_line for o in app]
-        dirname = cfg.hydra.job.config.override_dirname
-        cfg.hydra.job.override_dirname = overrides_dirname(app, dirname.exclude_keys, dirname.item_sep, dirname.kv_sep)
+        set_derived(cfg, parsed)
         if derived_name:  # Hydra names the job after the program composing it, unless the config names it
             cfg.hydra.job.name = JobRuntime().get("name")
         _record_process(cfg)
@@ -270,4 +271,5 @@ def compositions_once() -> Iterator[CompositionMemo]:
         yield memo
 
 
-__all__ = ["compositions_once", "CompositionMemo", "OverrideParser", "Skeletons", "SweepConfigLoader", "split_overrides"]
+__all__ = ["compositions_once", "CompositionMemo", "OverrideParser", "Skeletons", "SweepConfigLoader", "set_derived",
+           "split_overrides"]
