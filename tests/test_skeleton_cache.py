@@ -68,6 +68,21 @@ def test_a_damaged_file_is_composed_again_and_replaced(cache):
     assert skeleton_cache.cached_composition(KEY, False, compose)[1]  # replaced by a whole file
 
 
+def test_a_config_whose_classes_this_process_cannot_import_is_composed_again_and_replaced(cache):
+    """Kept by a process that had a plugin this one has not (launcher=slurm with hydra-submitit hidden): the
+    file loads but the config in it does not, so the process composes (Hydra names what is missing)."""
+    compose, calls = _made()
+    skeleton_cache.cached_composition(KEY, False, compose)
+    [path] = cache.glob("*.pkl")
+    plugin_config = b"cddmr_no_such_plugin\nLauncherConf\n."  # a pickled reference to a class of a missing module
+    with pytest.raises(ImportError):
+        pickle.loads(plugin_config)
+    path.write_bytes(pickle.dumps((False, plugin_config, True)))
+    kept, loaded = skeleton_cache.cached_composition(KEY, False, compose)
+    assert not loaded and len(calls) == 2 and pickle.loads(kept[1]) == {"value": "a"}
+    assert skeleton_cache.cached_composition(KEY, False, compose)[1] and len(calls) == 2  # replaced
+
+
 def test_a_user_config_dir_or_the_switch_is_never_cached(cache, monkeypatch):
     compose, calls = _made()
     user = ("config", (("main", "file:///home/me/conf"),), ())

@@ -227,14 +227,7 @@ class CompositionMemo(OverrideParser):
         elif validate_sweep_overrides:
             check_sweep_overrides(parsed, run_mode, from_shell)
         _, blob, derived_name = kept
-        try:
-            cfg = pickle.loads(blob)
-        except (ImportError, AttributeError, pickle.UnpicklingError, EOFError, TypeError, ValueError):
-            # kept by a process that could import what this one cannot (a plugin's config since removed or
-            # hidden): composed by Hydra here, which reports what is missing
-            self._kept.pop(key, None)
-            return compose(config_name=config_name, overrides=list(overrides), run_mode=run_mode,
-                           from_shell=from_shell, validate_sweep_overrides=validate_sweep_overrides)
+        cfg = pickle.loads(blob)
         apply_overrides([o for o in parsed if _hydra_value(o)], cfg)
         apply_overrides(values, cfg)
         set_derived(cfg, parsed)

@@ -17,10 +17,12 @@ it was composed from:
 - the Python, Hydra and OmegaConf versions and the ``hydra_plugins`` modules installed.
 
 A later process with the same key loads it (about 2 ms) instead of composing; an edit of any config file, the
-schema or a version makes a new key. A file that does not load (truncated by a crash, another version's pickle)
-is composed again and replaced; every write is atomic (a temporary file renamed), so concurrent processes never
-read half a file, and they write the same bytes. Only a search path of packaged sources is cached: with a user's
-config dir (``--config-dir``) everything composes as Hydra does. ``DDMR_SKELETON_CACHE=0`` turns it off.
+schema or a version makes a new key. A file that does not load (truncated by a crash, another version's pickle,
+a config whose classes this process cannot import: a plugin's, kept by a process that had the plugin) is
+composed again, by Hydra, which reports what is missing, and replaced; every write is atomic (a temporary file
+renamed), so concurrent processes never read half a file, and they write the same bytes. Only a search path of
+packaged sources is cached: with a user's config dir (``--config-dir``) everything composes as Hydra does.
+``DDMR_SKELETON_CACHE=0`` turns it off.
 """
 
 from __future__ import annotations
@@ -110,6 +112,7 @@ def cached_composition(key: tuple, multirun: bool, compose: Callable[[], tuple])
     try:
         kept = pickle.loads(path.read_bytes())
         if isinstance(kept, tuple) and len(kept) == 3 and isinstance(kept[1], bytes):
+            pickle.loads(kept[1])  # the config itself loads here (its classes import in this process)
             return kept, True
     except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError, TypeError, ValueError):
         pass  # none yet, or not loadable: composed again below and replaced
