@@ -450,3 +450,24 @@ def test_a_template_must_take_its_laws_from_the_slot_in_the_form_replaced(tmp_pa
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(RuntimeError, match="bad_template"):
         kernels._source_for("ddmr_cli.control.pid", "bad_template")
+
+
+def test_a_copy_recompiled_after_a_bad_entry_keeps_the_options_it_was_made_with(tmp_path):
+    """A copy whose cache entry does not load is recompiled with its own options: a step loop's division by zero
+    still gives inf (numpy's error model), and the entry saved for later processes is the same code."""
+    import importlib.util
+
+    from ddmr_cli.engine.kernels import _checked
+
+    path = tmp_path / "ddmr_recompile_probe.py"
+    path.write_text("from ddmr_cli.compiled import loop_law\n\n\n@loop_law\ndef ratio(a, b):\n    return a / b\n")
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    made_with = dict(module.ratio.targetoptions)
+    index = Path(module.ratio._cache._cache_file._index_path)
+    index.parent.mkdir(exist_ok=True)
+    index.write_bytes(b"not an index")  # an entry that does not load
+    [ratio] = _checked(module, [("ratio", (1.0, 0.0))], None)
+    assert ratio is not module.ratio and ratio.targetoptions == made_with
+    assert ratio(1.0, 0.0) == float("inf")

@@ -50,7 +50,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Callable
 
-from ddmr_cli.compiled import AVAILABLE, jit_enabled
+from ddmr_cli.compiled import AVAILABLE, cached_law, jit_enabled
 from ddmr_cli.engine.controller_slot import DEFAULT_MODULE
 from ddmr_cli.keyed import Keyed
 
@@ -355,7 +355,7 @@ def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Call
     functions = [getattr(module, name) for name, _ in calls]
     if not jit_enabled():
         return functions
-    from numba import njit, typeof
+    from numba import typeof
 
     signatures = [tuple(typeof(arg) for arg in args) for _, args in calls]
     path = Path(module.__file__)
@@ -378,7 +378,9 @@ def _checked(module: ModuleType, calls: list[tuple[str, tuple]], compiling: Call
           f"deleting it and recompiling", file=sys.stderr)
     for entry in entries:
         entry.unlink(missing_ok=True)
-    functions = [njit(cache=True, nogil=True)(f.py_func) for f in functions]
+    # recompiled with the options it was made with (numba's error model, no reference counting: loop_law)
+    functions = [cached_law(f.py_func, **{k: v for k, v in f.targetoptions.items() if k != "nopython"})
+                 for f in functions]
     for function, signature in zip(functions, signatures):
         function.compile(signature)
         if set(function.overloads) != {signature}:
