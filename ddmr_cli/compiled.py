@@ -49,6 +49,29 @@ def _content_mangled_records() -> None:
 
 if AVAILABLE:
     _content_mangled_records()
+    from numba.core.caching import FunctionCache
+
+    class LoadingCache(FunctionCache):
+        """numba's on-disk cache of a function whose load of compiled code sets up only what machine code needs to
+        run: numba's runtime (``rtsys.initialize``: the allocator's symbols and its atomic helpers).
+
+        numba's own load (``Cache.load_overload``) first refreshes the whole compiler context
+        (``BaseContext.refresh``): it imports every module of numba's typing and lowering rules (linear algebra,
+        typed dicts and sets, datetimes, polynomials, ...) and installs them, which a context needs to *compile*.
+        Loaded code is compiled and linked already: a cached step loop holds the laws it inlined and calls none of
+        those rules. The refresh took 0.47-0.64 s of CPU and 24 MiB in every process that runs a simulation
+        (``ddmr run``, each sweep worker, each study chunk). A compile still refreshes in full: numba's compiler
+        does so itself before every compilation (``CompilerBase.__init__``). Used by :func:`cached_law` when the
+        installed numba has the two private methods it calls (numba 0.5x-0.68); else numba's own cache is."""
+
+        def load_overload(self, sig, target_context):
+            from numba.core.runtime import rtsys
+
+            rtsys.initialize(target_context)
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+
+    _LOADS_LEAN = all(hasattr(FunctionCache, name) for name in ("_load_overload", "_guard_against_spurious_io_errors"))
 
 
 #: numba's options for every law: the GIL released; a float division by zero gives inf or NaN as numpy's does (no
@@ -72,17 +95,20 @@ def inlined_law(fn):
 def cached_law(fn, **options):
     """As :func:`law`, cached on disk: for the self-contained laws Python calls directly (the noise draw), which
     would otherwise compile in every process, and the generated copies of the step loop (:func:`loop_law`; see the
-    module docstring). Where numba finds no place for the cache (the package imported from a zip), compiled in
-    each process."""
+    module docstring); the cache loads compiled code without refreshing numba's compiler (:class:`LoadingCache`).
+    Where numba finds no place for the cache (the package imported from a zip), compiled in each process."""
     if not AVAILABLE:
         return fn
     options = {**_LAW_OPTIONS, **options}
-    try:
-        return njit(cache=True, **options)(fn)
+    compiled = njit(**options)(fn)
+    if not hasattr(compiled, "enable_caching"):  # NUMBA_DISABLE_JIT=1: the plain function
+        return compiled
+    try:  # what njit(cache=True) does (Dispatcher.enable_caching), with the leaner load where numba allows it
+        compiled._cache = (LoadingCache if _LOADS_LEAN else FunctionCache)(fn)
     except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available for file ..."
         if "no locator" not in str(exc):
             raise
-        return njit(**options)(fn)
+    return compiled
 
 
 def loop_law(fn):

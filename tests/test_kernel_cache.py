@@ -471,3 +471,20 @@ def test_a_copy_recompiled_after_a_bad_entry_keeps_the_options_it_was_made_with(
     [ratio] = _checked(module, [("ratio", (1.0, 0.0))], None)
     assert ratio is not module.ratio and ratio.targetoptions == made_with
     assert ratio(1.0, 0.0) == float("inf")
+
+
+def test_a_process_that_loads_its_step_loop_runs_it_without_numbas_compiler(tmp_path):
+    """A cached step loop loads without numba's compiler rules (compiled.LoadingCache): the process that compiled
+    the loop imported them (numba.np.linalg among them), the process that loads it does not, and the two give the
+    same numbers to the bit."""
+    script = ("import sys; from ddmr_cli import paper_simulation, simulate; "
+              "r = simulate(paper_simulation('controller=pid', 'simulation.duration=0.06'), [3, 4]); "
+              "print([float(v).hex() for v in r.metric('deviation_mae')], 'numba.np.linalg' in sys.modules)")
+    env = {**os.environ, "DDMR_CACHE_DIR": str(tmp_path)}
+    runs = []
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        runs.append(proc.stdout.strip().rsplit(" ", 1))
+    (cold, cold_rules), (warm, warm_rules) = runs
+    assert warm == cold and (cold_rules, warm_rules) == ("True", "False")
