@@ -341,3 +341,18 @@ def test_bench_times_hydras_own_work_per_job():
 
     low, median = hydra_job_floor(3)
     assert 0 < low <= median < 10_000
+
+
+def test_bench_names_whether_ddmr_loads_from_bytecode(monkeypatch, tmp_path):
+    """The machine line says whether ddmr's modules load from .pyc or compile from source in every process."""
+    import importlib.util
+
+    import ddmr_cli.cli.run as module
+    from ddmr_cli.cli.bench import bytecode_note, machine_line
+
+    compiled = tmp_path / "run.cpython.pyc"
+    compiled.write_bytes(importlib.util.MAGIC_NUMBER)
+    monkeypatch.setattr(module, "__cached__", str(compiled))
+    assert bytecode_note() == "ddmr bytecode compiled" and machine_line().endswith(bytecode_note())
+    monkeypatch.setattr(module, "__cached__", str(tmp_path / "absent.pyc"))
+    assert "from source" in bytecode_note() and machine_line().endswith(bytecode_note())
