@@ -190,6 +190,46 @@ def test_band_reduction_of_diverged_runs_is_numpys_and_warns_about_nothing(runs,
     assert acc.high.tobytes() == high.reshape(points, -1).T.tobytes()
 
 
+
+@FAST
+@given(runs=st.integers(1, 40), points=st.integers(1, 9), block=st.integers(1, 4), seed=st.integers(0, 2**32 - 1))
+def test_band_reduction_in_blocks_of_grid_points_is_the_whole_reduction_to_the_bit(runs, points, block, seed):
+    """A chunk is reduced in blocks of grid points (bands.REDUCE_BLOCK_BYTES bounds the reduction's copy at any
+    number of seeds): the bands are the same bits as one reduction of the whole buffer, with blocks of finite runs
+    beside blocks with diverged ones (each block takes its own path)."""
+    from ddmr_cli.engine import bands
+    from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
+
+    rng = np.random.default_rng(seed)
+    buffer = rng.standard_normal((runs, points, len(BAND_CHANNELS)))
+    buffer[:, rng.random(points) < 0.4] *= np.where(rng.random((runs, 1, 1)) < 0.2, np.inf, 1.0)  # some points
+    whole, blocked = BandAccumulator(points, 1e-3), BandAccumulator(points, 1e-3)
+    whole.add_chunk(buffer.copy(), 0)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(bands, "REDUCE_BLOCK_BYTES", block * runs * len(BAND_CHANNELS) * 8)  # `block` points a copy
+        blocked.add_chunk(buffer.copy(), 0)
+    for name in ("mean", "low", "high"):
+        assert getattr(blocked, name).tobytes() == getattr(whole, name).tobytes()
+
+
+def test_band_reduction_of_10000_runs_copies_a_block_not_the_buffer():
+    """The reduction's working memory is about a block (bands.REDUCE_BLOCK_BYTES), not the chunk's buffer: 10,000
+    runs x 19 grid points x 8 channels (the engine's chunk at 10,000 seeds) is 12 MiB."""
+    import tracemalloc
+
+    from ddmr_cli.engine.bands import BAND_CHANNELS, REDUCE_BLOCK_BYTES, BandAccumulator
+
+    buffer = np.random.default_rng(1).standard_normal((10_000, 19, len(BAND_CHANNELS)))
+    acc = BandAccumulator(19, 1e-3)
+    tracemalloc.start()
+    try:
+        acc.add_chunk(buffer, 0)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 3 * REDUCE_BLOCK_BYTES < buffer.nbytes / 3, peak
+
+
 @FAST
 @given(a=st.lists(angles, min_size=1, max_size=20))
 def test_wrap_angle_vectorised_agrees_with_scalar(a):

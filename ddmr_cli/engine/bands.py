@@ -20,6 +20,10 @@ BAND_CHANNELS = ("deviation", "e_x", "e_y", "e_theta", "u_right", "u_left", "s_r
 LOW, HIGH = 5.0, 95.0
 #: Most grid points of a band: the grid is every ``ceil(n_steps / MAX_POINTS)``-th step.
 MAX_POINTS = 3000
+#: Bytes of a buffer's values one reduction copies at a time: a chunk's grid points are reduced in blocks of at
+#: most this (at least one point), so the reduction's copy stays small at any number of seeds (10,000 seeds: a 1 MiB
+#: copy, not one of the whole buffer).
+REDUCE_BLOCK_BYTES = 2**20
 #: From this many runs on, the order statistics come from a partition (O(n)) instead of a sort: measured here,
 #: numpy's SIMD sort is faster up to about a thousand values a row, the partition twice as fast at 10,000.
 #: Either gives the same order statistics, so the bands do not depend on it.
@@ -125,9 +129,13 @@ class BandAccumulator:
         if points is not None:
             a, b = points
             buffer, first = buffer[:, a:b], first + a
+        block = max(1, REDUCE_BLOCK_BYTES // max(1, buffer.shape[0] * buffer.shape[2] * buffer.itemsize))
+        for a in range(0, buffer.shape[1], block):
+            self._reduce(buffer[:, a:a + block], first + a)
+
+    def _reduce(self, buffer: np.ndarray, first: int) -> None:
+        """:meth:`add_chunk` on one block of grid points (all of ``buffer``)."""
         n = buffer.shape[1]
-        if n == 0:
-            return
         # one contiguous row of runs per grid point and channel: the percentiles partition rows, not strided columns
         columns = np.ascontiguousarray(buffer.reshape(buffer.shape[0], -1).T)
         with np.errstate(all="ignore"):
@@ -149,4 +157,5 @@ class BandAccumulator:
         return out
 
 
-__all__ = ["BAND_CHANNELS", "BandAccumulator", "band_row", "band_stride", "order_rows", "percentiles_of_sorted"]
+__all__ = ["BAND_CHANNELS", "BandAccumulator", "REDUCE_BLOCK_BYTES", "band_row", "band_stride", "order_rows",
+           "percentiles_of_sorted"]

@@ -42,7 +42,9 @@ INTEGRATORS = ("euler", "rk4")
 _BYTES_PER_RUN_STEP = 8 * len(CHANNELS)
 CHUNK_BUDGET = 16 * 2**20
 MAX_CHUNK_STEPS = 4096
-MIN_CHUNK_STEPS = 64
+#: the fewest steps of a chunk: low enough that the budget holds for huge batches too (10,000 seeds: 19 steps, 12 MiB
+#: of band buffer; a floor of 64 made it 41 MiB), high enough that a chunk's Python work stays small beside its steps
+MIN_CHUNK_STEPS = 8
 #: with several threads, a chunk's runs are cut into up to this many blocks per thread, which the threads take as
 #: they come free, so a core slowed by another process no longer holds the others up at the chunk's end (docs/model.md
 #: §5, Threads: waiting 15 % -> 5 % of the step loop's time on a shared 2-core machine); each block has at least
