@@ -212,6 +212,20 @@ def test_band_reduction_in_blocks_of_grid_points_is_the_whole_reduction_to_the_b
         assert getattr(blocked, name).tobytes() == getattr(whole, name).tobytes()
 
 
+@FAST
+@given(n_steps=st.integers(1, 20_000), k0=st.integers(0, 20_000), n=st.integers(1, 5000))
+def test_band_most_points_bounds_every_chunks_grid_points_and_is_reached(n_steps, k0, n):
+    """The engine sizes its one band buffer by BandAccumulator.most_points(chunk): no chunk, wherever it starts,
+    holds more grid points, and a chunk starting on a grid point holds that many."""
+    from ddmr_cli.engine.bands import BandAccumulator
+
+    acc = BandAccumulator(n_steps, 1e-3)
+    first, end = acc.grid_range(k0, n)
+    assert end - first <= acc.most_points(n)
+    first, end = acc.grid_range(k0 * acc.stride, n)
+    assert end - first == acc.most_points(n)
+
+
 def test_band_reduction_of_10000_runs_copies_a_block_not_the_buffer():
     """The reduction's working memory is about a block (bands.REDUCE_BLOCK_BYTES), not the chunk's buffer: 10,000
     runs x 19 grid points x 8 channels (the engine's chunk at 10,000 seeds) is 12 MiB."""

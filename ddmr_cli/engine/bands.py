@@ -122,6 +122,11 @@ class BandAccumulator:
         end = -(-(k0 + n_steps) // self.stride)
         return first, end
 
+    def most_points(self, n_steps: int) -> int:
+        """The most grid points ``n_steps`` consecutive steps hold (:meth:`grid_range` of any first step):
+        ``ceil(n_steps / stride)``, reached by a run of steps that starts on a grid point."""
+        return -(-n_steps // self.stride)
+
     def add_chunk(self, buffer: np.ndarray, first: int, points: tuple[int, int] | None = None) -> None:
         """Reduce ``buffer[run, j, channel]`` (grid points ``first + j``) over the runs; only the buffer's grid
         points ``points = (a, b)`` when given (threads may reduce disjoint ranges of one buffer at once: every

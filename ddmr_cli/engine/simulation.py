@@ -310,11 +310,7 @@ class _Batch:
         stepped): chunks of the same size do not allocate and free megabytes each (the allocator keeps what it
         was given back: 10,000 seeds peaked 10 MiB higher)."""
         n_runs, xi, k0 = len(self.runs), None, 0
-        def points(k: int) -> int:  # grid points of the chunk from step k
-            first, end = self.bands.grid_range(k, min(self.chunk, n_steps - k))
-            return end - first
-
-        widest = max(map(points, range(0, n_steps, self.chunk)), default=0) if self.bands is not None else 0
+        widest = self.bands.most_points(self.chunk) if self.bands is not None else 0
         band_memory = np.empty(n_runs * widest * len(BAND_CHANNELS))
         while k0 < n_steps:
             n = min(self.chunk, n_steps - k0)
