@@ -11,7 +11,7 @@ import math
 import pytest
 
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.config import display
+from ddmr_cli import display
 from ddmr_cli.plots import common as P
 
 PACKAGED = display.packaged_all()

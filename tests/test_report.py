@@ -582,6 +582,62 @@ def test_figure_processes_draw_below_the_reports_priority(mini_sweep, tmp_path, 
     assert niceness == [min(19, os.nice(0) + F.FIGURE_NICE)] * 2
 
 
+def test_a_figure_process_stops_waiting_once_its_starter_is_gone():
+    """A figure process waits for tasks only while the process that started it lives: a killed report leaves no
+    process drawing into its staging dir. Waiting for a parent that is not this process's, it returns (within the
+    1 s poll); waiting for its real parent, it waits for a task."""
+    import multiprocessing
+    import os
+    import threading
+
+    from ddmr_cli.report import figures as F
+
+    ctx = multiprocessing.get_context("fork")
+    for parent, ends in ((os.getppid() + 1, True), (os.getppid(), False)):
+        tasks = ctx.Queue()
+        waiting = threading.Thread(target=F._worker, args=(None, None, None, tasks, ctx.Queue(), parent), daemon=True)
+        waiting.start()
+        waiting.join(timeout=3.0)
+        assert waiting.is_alive() is not ends
+        tasks.put(None)  # the end of the tasks: it returns either way
+        waiting.join(timeout=3.0)
+        assert not waiting.is_alive()
+
+
+def test_the_verdicts_need_neither_hydra_nor_numba_nor_matplotlib(mini_sweep):
+    """``ddmr report`` reaches its verdicts without loading Hydra, numba or matplotlib (issue 28: 0.1-0.35 s of imports
+    each before the answer): the report names the metrics from :mod:`ddmr_cli.engine.catalog` and the controllers
+    from :mod:`ddmr_cli.display`, not from the packages that compose and compile."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from ddmr_cli.cli import main, reporting; from ddmr_cli.report import build, data, verdicts; "
+            f"verdicts.evaluate(data.load({str(mini_sweep)!r})); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'hydra', 'omegaconf', 'numba', 'matplotlib'}))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300)
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+@pytest.mark.slow  # draws figures
+def test_the_reports_own_process_leaves_matplotlib_to_the_figure_processes(mini_sweep, tmp_path):
+    """With figure processes, the report's own process (its tables and verdicts, issue 28) imports no matplotlib: the
+    first figure process loads it and forks the others, and our Table 4 beside the paper's is one of their tasks,
+    embedded in the Table 4 section."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    code = ("import sys; from ddmr_cli.report import build_report; "
+            f"build_report({str(mini_sweep)!r}, {str(out)!r}, progress=False); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=600,
+                          env={**os.environ, "DDMR_REPORT_WORKERS": "2"})
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert (out / "figures" / "table4_vs_paper.png").read_bytes()[:4] == b"\x89PNG"
+    assert "](figures/table4_vs_paper.png)" in _section((out / "report.md").read_text(), "Table 4: tracking")
+
+
 @pytest.mark.slow  # draws figures
 def test_trajectory_zoom_follows_the_path(mini_sweep, tmp_path):
     """The paper's line: y against x; a circle: the lateral error against the distance travelled. A job on another

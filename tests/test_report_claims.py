@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from ddmr_cli.engine.metrics import METRICS, STEADY
+from ddmr_cli.engine.catalog import METRICS, STEADY
 from ddmr_cli.paper import claims as C
 from ddmr_cli.paper import numbers
 from ddmr_cli.study import claims as study

@@ -223,7 +223,7 @@ def test_the_empty_steady_state_window_is_warned(tmp_path):
 
 def test_scenarios_off_the_paper_line_get_the_summary_figures_unless_all_are_asked_for(seeds, tmp_path):
     from ddmr_cli.report.data import load
-    from ddmr_cli.report.figures import ACROSS, FIGURE_METHODS, ON_DEMAND, SUMMARY_METHODS, figure_tasks
+    from ddmr_cli.report.figures import ACROSS, FIGURE_METHODS, ON_DEMAND, SUMMARY_METHODS, TABLE4_TASK, figure_tasks
 
     sweep = tmp_path / "sweep"
     for controller in CONTROLLERS:
@@ -234,21 +234,21 @@ def test_scenarios_off_the_paper_line_get_the_summary_figures_unless_all_are_ask
     data = load(sweep)
     assert data.scenarios == ["paper_1", "paper_1@circle", "paper_2", "paper_2@circle"]
     tasks = figure_tasks(data)
-    assert tasks[0] == (ACROSS, "fig_scenarios")  # the summary across scenarios first
+    assert tasks[:2] == [TABLE4_TASK, (ACROSS, "fig_scenarios")]  # the summaries first
     default = [m for m in FIGURE_METHODS if m not in ON_DEMAND]
     assert [m for s, m in tasks if s == "paper_1"] == default
     assert [m for s, m in tasks if s == "paper_1@circle"] == list(SUMMARY_METHODS)
-    assert len(tasks) == 1 + 2 * len(default) + 2 * len(SUMMARY_METHODS)
+    assert len(tasks) == 2 + 2 * len(default) + 2 * len(SUMMARY_METHODS)
     every = figure_tasks(data, every=True)
     assert [m for s, m in every if s == "paper_2@circle"] == list(FIGURE_METHODS)
 
 
 def test_table4_sized_reports_draw_every_figure_and_no_summary(seeds):
     from ddmr_cli.report.data import load
-    from ddmr_cli.report.figures import FIGURE_METHODS, ON_DEMAND, figure_tasks
+    from ddmr_cli.report.figures import FIGURE_METHODS, ON_DEMAND, TABLE4_TASK, figure_tasks
 
     tasks = figure_tasks(load(seeds))
-    assert tasks == [(s, m) for s in SCENARIOS for m in FIGURE_METHODS if m not in ON_DEMAND]
+    assert tasks == [TABLE4_TASK] + [(s, m) for s in SCENARIOS for m in FIGURE_METHODS if m not in ON_DEMAND]
 
 
 def test_our_table4_beside_the_papers(seeds, tmp_path):

@@ -99,7 +99,7 @@ else:  # pragma: no cover - numba is a dependency; without it the kernels run as
 LAYOUTS = ("lanes", "scalar")
 #: runs per block of the lanes layout (the row length of its local state array: 8 is 10 % slower, 64 the same)
 BLOCK = 32
-#: the metrics :func:`reference_metrics` returns per seed (as :data:`ddmr_cli.engine.metrics.METRICS` defines them)
+#: the metrics :func:`reference_metrics` returns per seed (as :data:`ddmr_cli.engine.catalog.METRICS` defines them)
 METRICS = ("deviation_mae", "deviation_rmse", "deviation_max", "e_x_mae", "e_y_mae", "e_theta_mae", "iae", "ise")
 #: below this exponent exp is exactly 0 (as :data:`ddmr_cli.control.rbf.EXP_ZERO`)
 EXP_ZERO = rbf.EXP_ZERO

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import sys
 
-from ddmr_cli.config import config_groups
-
 EXIT_USAGE = 2
 EXIT_FAILED = 1
 INTERRUPTED = 130
@@ -28,7 +26,7 @@ def composition_error(exc: BaseException, overrides: list[str]) -> str:
     from hydra.errors import MissingConfigException, OverrideParseException
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException
 
-    from ddmr_cli.config import group_options
+    from ddmr_cli.config import config_groups, group_options
 
     if isinstance(exc, OverrideParseException):
         return f"{exc.override}: cannot parse override ({str(exc.message).splitlines()[0]})" if hasattr(

@@ -19,7 +19,7 @@ from ddmr_cli.model.sensor import Sensor
 from ddmr_cli.model.scenario import UNCERTAINTY_FORMS, DampingUncertainty, Phase, Scenario
 from ddmr_cli.engine.simulation import Simulation
 from ddmr_cli.model.terrain import Terrain, TerrainZone
-from ddmr_cli.config.display import DISPLAY
+from ddmr_cli.display import DISPLAY
 
 #: Only the project's own classes may be instantiated from a config.
 ALLOWED_TARGET_PREFIX = "ddmr_cli."

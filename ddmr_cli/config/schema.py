@@ -14,7 +14,7 @@ from typing import Any, Callable, Dict, List, Optional
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
-from ddmr_cli.config.display import RULES as DISPLAY_RULES
+from ddmr_cli.display import RULES as DISPLAY_RULES
 
 
 def param(default: Any = MISSING, *, unit: str, help: str, range: str = "", model: int | None = None,

@@ -29,7 +29,7 @@ from ddmr_cli.checks import integer, positive
 from ddmr_cli.config import budget
 from ddmr_cli.config.build import USER_TARGETS, build_simulation, check_targets, plant_module
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.config import display
+from ddmr_cli import display
 
 #: the forms of run.keep_series
 KEEP_FORMS = "a list of seeds, first:N (the job's first N seeds), all or none"

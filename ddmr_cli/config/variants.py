@@ -31,7 +31,7 @@ from typing import Any, Mapping
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from ddmr_cli.config.build import SECTION_BUILDERS, build_parts
-from ddmr_cli.config.display import DISPLAY
+from ddmr_cli.display import DISPLAY
 from ddmr_cli.config.validate import check_simulation, validate_config
 from ddmr_cli.keyed import Kept
 

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ddmr_cli.compiled import inlined_law, law
+from ddmr_cli.engine.catalog import METRICS, STEADY
 
 #: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
 SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturated",
@@ -29,32 +30,6 @@ SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturate
         "abs_dtilde_ndo_R", "abs_dtilde_ndo_L", "abs_s_R", "abs_s_L", "u_R", "u_L", "u_hp2_R", "u_hp2_L",
         "abs_u_R", "abs_u_L")
 N_SUMS = len(SUMS)
-
-#: Run metrics, in the order of the tables: name -> (unit, description).
-METRICS: dict[str, tuple[str, str]] = {
-    "deviation_mae": ("m", "mean of ||(x_r - x, y_r - y)|| (Table 4 'Deviation')"),
-    "deviation_rmse": ("m", "RMS deviation"),
-    "deviation_max": ("m", "largest deviation"),
-    "deviation_final": ("m", "deviation at the last step"),
-    "e_x_mae": ("m", "mean |e_x| (longitudinal)"),
-    "e_y_mae": ("m", "mean |e_y| (lateral)"),
-    "e_theta_mae": ("rad", "mean |e_theta| (heading; the paper prints it in m)"),
-    "iae": ("m s", "integral of |deviation|"),
-    "ise": ("m^2 s", "integral of deviation^2"),
-    "itae": ("m s^2", "integral of t |deviation|"),
-    "chattering": ("V/s", "total variation of applied u per second, mean of both wheels"),
-    "chattering_right": ("V/s", "total variation of applied u_R per second"),
-    "chattering_left": ("V/s", "total variation of applied u_L per second"),
-    "hf_fraction": ("1", "fraction of var(u) above the high-pass cutoff, mean of both wheels"),
-    "mean_voltage": ("V", "mean |u| of both wheels"),
-    "energy_u2": ("V^2 s", "integral of u_R^2 + u_L^2"),
-    "electrical_energy": ("J", "integral of u i over both motors"),
-    "saturation_fraction": ("1", "fraction of steps with a wheel at +-U_max"),
-    "d_est_mae": ("rad/s^2", "mean |d_true - d_hat| of both wheels"),
-    "d_est_mae_ndo": ("rad/s^2", "mean |d_true - d_hat_NDO| of both wheels (the NDO part alone)"),
-    "s_mae": ("rad/s", "mean |s| of both wheels"),
-}
-
 
 #: The estimation metrics: name -> the names of the controller's ESTIMATE channels whose summed estimate of d it
 #: compares with the true d (None: all of them). ``d_est_mae_ndo`` keeps the paper's "NDO part alone" by name (0
@@ -95,8 +70,6 @@ def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarr
     return sos, np.array([-b0, b0])
 
 
-#: Suffix of the steady-state metrics (``deviation_mae_ss``): the same metric over the steps after settling.
-STEADY = "_ss"
 #: runs whose metrics :meth:`MetricAccumulator.finalize` computes at once: its temporaries stay about a MiB at any
 #: number of seeds (10,000 seeds at once: 10 MiB beside the 16 MiB of results)
 FINALIZE_BLOCK_RUNS = 1024

@@ -75,7 +75,7 @@ class SimulationResult:
     segments : list of str
         ``total``, then ``zone:<name>`` per terrain zone and ``phase:<name>`` per scenario phase.
     metrics : dict of str -> ndarray (n_runs, n_segments)
-        Run metrics (:data:`ddmr_cli.engine.metrics.METRICS` and their steady-state twins ``<name>_ss``), NaN for
+        Run metrics (:data:`ddmr_cli.engine.catalog.METRICS` and their steady-state twins ``<name>_ss``), NaN for
         diverged runs and empty segments.
     diverged : ndarray of bool (n_runs,)
     divergence_time : ndarray (n_runs,)

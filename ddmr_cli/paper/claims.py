@@ -30,12 +30,11 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Iterable
 
+from ddmr_cli.engine.catalog import STEADY
 from ddmr_cli.paper import numbers
 
 IMPROVEMENT, RANKING, BASELINE = "improvement", "ranking", "baseline"
 KINDS = (IMPROVEMENT, RANKING, BASELINE)
-#: Suffix of a metric's steady-state twin (``ddmr_cli.engine.metrics.STEADY``).
-STEADY = "_ss"
 #: The paper's SMC-NDO-NNO: its Table 3 reading, and the text's reading of the NN parameters (docs/model.md §6);
 #: the report judges every claim on each reading it has jobs for, the study on the first.
 NNO_READINGS = ("smc_ndo_nno", "smc_ndo_nno_text")
@@ -196,5 +195,5 @@ def by_id() -> dict[str, Claim]:
 
 
 __all__ = ["Claim", "claims", "by_id", "baseline", "available", "paper_controllers", "estimation_reduction",
-           "KINDS", "IMPROVEMENT", "RANKING", "BASELINE", "NNO", "NNO_READINGS", "ABOUT_BAND", "STEADY",
+           "KINDS", "IMPROVEMENT", "RANKING", "BASELINE", "NNO", "NNO_READINGS", "ABOUT_BAND",
            "DEVIATION", "CHATTERING", "ESTIMATION", "BASELINE_METRICS"]

@@ -25,7 +25,7 @@ import numpy as np
 from ddmr_cli.storage.io import atomic_write
 
 if TYPE_CHECKING:
-    from ddmr_cli.config.display import Display
+    from ddmr_cli.display import Display
 
 #: Okabe & Ito (2008), "Color universal design": eight colours told apart with every common colour-vision deficiency.
 OKABE_ITO = {
@@ -52,7 +52,7 @@ class Style:
 
     def kwargs(self, variant: int = 0) -> dict:
         """matplotlib keywords; a controller's further jobs (variants: e.g. a gain sweep) add a marker."""
-        from ddmr_cli.config.display import DASHES, MARKERS
+        from ddmr_cli.display import DASHES, MARKERS
         marker = self.marker if variant == 0 else MARKERS[1 + (variant - 1) % (len(MARKERS) - 1)]
         kw = {"color": self.color, "ls": DASHES[self.dash], "lw": self.width}
         if marker:
@@ -63,7 +63,7 @@ class Style:
 def known_styles(displays: Mapping[str, Display] | None = None) -> dict[str, Style]:
     """The style of every controller whose display sets a colour and a dash: the packaged controllers' (their
     ``conf/controller/*.yaml``), then ``displays`` (a report's, from its jobs' configs) over them."""
-    from ddmr_cli.config import display
+    from ddmr_cli import display
     out = {}
     for d in [display.of(n) for n in display.packaged_all()] + list((displays or {}).values()):
         if d.colour and d.dash:
@@ -75,7 +75,7 @@ def known_styles(displays: Mapping[str, Display] | None = None) -> dict[str, Sty
 
 def _free_combinations(known: Iterable[Style]) -> list[Style]:
     """Every (colour, dash, marker) not taken by a known controller, in a fixed order (yellow last: it is faint)."""
-    from ddmr_cli.config.display import DASHES, MARKERS
+    from ddmr_cli.display import DASHES, MARKERS
     taken = {(s.color, s.dash, s.marker) for s in known}
     return [Style(c, d, m) for m, c, d in itertools.product(MARKERS, OKABE_ITO.values(), DASHES)
             if (c, d, m) not in taken]
@@ -122,7 +122,7 @@ class StyleBook:
 def style_of(controller: str) -> Style:
     """The style of one controller alone (a run's figures): ``StyleBook([controller])[controller]``, read from its
     own config only when it sets a colour and a dash (every packaged controller; the book reads them all)."""
-    from ddmr_cli.config import display
+    from ddmr_cli import display
 
     own = display.of(controller)
     if own.colour and own.dash:
@@ -132,7 +132,7 @@ def style_of(controller: str) -> Style:
 
 def label_of(controller: str) -> str:
     """The label of a controller known by name (its packaged YAML's ``display.label``; else its name)."""
-    from ddmr_cli.config import display
+    from ddmr_cli import display
 
     return display.label(controller)
 

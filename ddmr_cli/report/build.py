@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ddmr_cli.storage import io, jobdir
-from ddmr_cli.engine.metrics import METRICS
+from ddmr_cli.engine.catalog import METRICS
 from ddmr_cli.report import signals as S
 from ddmr_cli.report import tables as T
 from ddmr_cli.report import realism
@@ -18,8 +18,8 @@ from ddmr_cli.report import verdicts as V
 from ddmr_cli.paper import PAPER_SCENARIO
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten, load
-from ddmr_cli.report.figures import (ACROSS, common_seed, detailed, fig_table4, figure_tasks, shown_jobs,
-                                     start_figures)
+from ddmr_cli.report.figures import (ACROSS, TABLE4_TASK, common_seed, detailed, figure_tasks, shown_jobs,
+                                     start_figures, table4_figure, table4_rows)
 from ddmr_cli.plots.common import OKABE_ITO, StyleBook
 from ddmr_cli.report.stats import Margin
 
@@ -222,8 +222,8 @@ class Report:
         self.add(T.md_table(["Paper row"] + [h for *_, h in T.TABLE4_COLUMNS],
                             [[name] + [T.fmt(v[c]) for _, _, c, _ in T.TABLE4_COLUMNS] for name, v in paper.items()]),
                  "")
-        figure = fig_table4(t4, self.figures_dir, self.styles, self.data.displays()) if self.draw_figures else None
-        if figure is not None:
+        if self.draw_figures and not table4_rows(t4).empty:  # drawn in a figure process (TABLE4_TASK)
+            figure = table4_figure(self.figures_dir)
             self.add(f"**{figure.title}.** {figure.caption}", "",
                      f"![{figure.title}]({figure.path.relative_to(self.out).as_posix()})", "")
 
@@ -395,6 +395,7 @@ class Report:
                      "")
             return
         figures, notes = self.start_figures()()
+        figures.pop(TABLE4_TASK[0], None)  # in the Table 4 section
         present = list(dict.fromkeys(j.controller for j in self.data.jobs))
         names = {v: k.replace("_", " ") for k, v in OKABE_ITO.items()}
         shown = self.data.displays()

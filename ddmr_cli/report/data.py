@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 from ddmr_cli.storage import io
 from ddmr_cli.errors import DDMRError
 from ddmr_cli.paper import PAPER_SCENARIO
-from ddmr_cli.config import display
+from ddmr_cli import display
 
 if TYPE_CHECKING:
     import numpy as np
@@ -98,7 +98,7 @@ class Job:
 
     @cached_property
     def display(self) -> display.Display:
-        """The controller's label, style and rank, from the job's saved config (:mod:`ddmr_cli.config.display`)."""
+        """The controller's label, style and rank, from the job's saved config (:mod:`ddmr_cli.display`)."""
         return display.of_job(self.controller, self.config)
 
     @property
@@ -139,6 +139,15 @@ class ReportData:
     plan: list[dict] | None = None
     _series: dict = field(default_factory=dict, repr=False)
     _bands: dict = field(default_factory=dict, repr=False)
+    _ok: dict = field(default_factory=dict, repr=False)
+
+    def ok_metrics(self, job: Job) -> "pd.DataFrame":
+        """The job's per-seed metrics of the seeds that did not diverge, indexed by seed (made once: the verdicts
+        read each job's for every claim and metric)."""
+        if job.dir not in self._ok:
+            m = self.metrics
+            self._ok[job.dir] = m[(m["job"] == job.dir.name) & (m["status"] == "ok")].set_index("seed")
+        return self._ok[job.dir]
 
     def series(self, job: Job, seed: int) -> dict:
         """One kept seed's time series of a job (read once)."""

@@ -7,8 +7,6 @@ import math
 
 import numpy as np
 
-from ddmr_cli.engine.results import d_hat, estimate_names  # noqa: F401  (the report reads a run's estimates)
-
 #: The high-pass cutoff of the hf_fraction metric when neither the job's config nor the engine says otherwise.
 DEFAULT_HF_CUTOFF = 10.0
 

@@ -6,7 +6,7 @@ import math
 import re
 from typing import TYPE_CHECKING, Iterable, Sequence
 
-from ddmr_cli.engine.metrics import METRICS
+from ddmr_cli.engine.catalog import METRICS
 from ddmr_cli.paper import PAPER_SCENARIO, TABLE4_COLUMNS
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import ReportData

@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
-from ddmr_cli.engine.metrics import METRICS
-from ddmr_cli.paper.claims import (BASELINE, NNO, NNO_READINGS, RANKING as RANKING_KIND, STEADY as SS,
-                                   Claim, available, baseline, paper_controllers)
+from ddmr_cli.engine.catalog import METRICS, STEADY as SS
+from ddmr_cli.paper.claims import (BASELINE, NNO, NNO_READINGS, RANKING as RANKING_KIND, Claim, available, baseline,
+                                   paper_controllers)
 from ddmr_cli.paper.claims import by_id as claim_definitions
 from ddmr_cli.paper.claims import claims as paper_claims
 from ddmr_cli.paper import numbers as paper_numbers
@@ -138,9 +138,8 @@ def _key_for(data: ReportData, scenario: str, controller: str) -> tuple[str | No
 
 
 def per_seed(data: ReportData, scenario: str, key: str, metric: str):
-    job = data.job(scenario, key)
-    frame = data.metrics[(data.metrics["job"] == job.dir.name) & (data.metrics["status"] == "ok")]
-    return frame.set_index("seed")[metric].astype(float)
+    """The job's ``metric`` per seed that did not diverge (index: seed)."""
+    return data.ok_metrics(data.job(scenario, key))[metric].astype(float)
 
 
 def _compare(data, claim, scenario, reading, a, b, metric, judge, margin: Margin) -> Check:

@@ -22,14 +22,14 @@ BANDS = "bands.npz"
 CONFIG = "config.yaml"
 PLOTS_DIR = "plots"
 
-#: The headline metrics of a job (units and meanings in :data:`ddmr_cli.engine.metrics.METRICS`): its log lines,
+#: The headline metrics of a job (units and meanings in :data:`ddmr_cli.engine.catalog.METRICS`): its log lines,
 #: the sweep's ``sweep_jobs.csv`` (``<metric>_mean``, ``<metric>_sd``) and the sweep's terminal summary.
 HEADLINE = ("deviation_mae", "e_x_mae", "e_y_mae", "e_theta_mae", "chattering", "d_est_mae", "mean_voltage")
 
 
 def unit_of(metric: str) -> str:
-    """The unit of a run metric (docs/model.md §7), as :data:`ddmr_cli.engine.metrics.METRICS` defines it."""
-    from ddmr_cli.engine.metrics import METRICS
+    """The unit of a run metric (docs/model.md §7), as :data:`ddmr_cli.engine.catalog.METRICS` defines it."""
+    from ddmr_cli.engine.catalog import METRICS
 
     return METRICS[metric][0]
 

@@ -38,7 +38,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from ddmr_cli.checks import integer, one_of
 from ddmr_cli.storage import io
-from ddmr_cli.engine.metrics import STEADY
+from ddmr_cli.engine.catalog import STEADY
 from ddmr_cli.errors import ConfigError
 
 log = logging.getLogger("ddmr")
