@@ -582,26 +582,30 @@ def test_figure_processes_draw_below_the_reports_priority(mini_sweep, tmp_path, 
     assert niceness == [min(19, os.nice(0) + F.FIGURE_NICE)] * 2
 
 
-def test_a_figure_process_stops_waiting_once_its_starter_is_gone():
-    """A figure process waits for tasks only while the process that started it lives: a killed report leaves no
-    process drawing into its staging dir. Waiting for a parent that is not this process's, it returns (within the
-    1 s poll); waiting for its real parent, it waits for a task."""
-    import multiprocessing
-    import os
-    import threading
+def test_figure_processes_take_no_task_once_the_report_is_gone(mini_sweep, tmp_path, monkeypatch):
+    """The figure processes watch a pipe whose write end only the report's process holds: once it is closed (the
+    report killed, or a figure failed), they take no further task. With the report's end closed after the first
+    result, the lead and its helper end with the figure each was drawing, not with the last of 12."""
+    import time
 
+    from ddmr_cli.report import data as D
     from ddmr_cli.report import figures as F
 
-    ctx = multiprocessing.get_context("fork")
-    for parent, ends in ((os.getppid() + 1, True), (os.getppid(), False)):
-        tasks = ctx.Queue()
-        waiting = threading.Thread(target=F._worker, args=(None, None, None, tasks, ctx.Queue(), parent), daemon=True)
-        waiting.start()
-        waiting.join(timeout=3.0)
-        assert waiting.is_alive() is not ends
-        tasks.put(None)  # the end of the tasks: it returns either way
-        waiting.join(timeout=3.0)
-        assert not waiting.is_alive()
+    monkeypatch.setattr(F, "make_one", lambda *args: time.sleep(0.3))  # forked: the figure processes call this one
+    monkeypatch.setattr(F, "_warm_up", lambda: None)
+    procs, results, tasks, keep = F._start_forked(D.load(mini_sweep), tmp_path, None, [("paper_1", "any")] * 12, 2)
+    results.get(timeout=60)
+    keep.close()
+    procs[0].join(timeout=30)
+    assert not procs[0].is_alive()
+    drawn = 1
+    while True:
+        try:
+            results.get(timeout=0.5)
+        except Exception:  # noqa: BLE001 - queue.Empty: nothing more was drawn
+            break
+        drawn += 1
+    assert drawn <= 4  # at most the figure each of the two was drawing, and one each had just taken
 
 
 def test_the_verdicts_need_neither_hydra_nor_numba_nor_matplotlib(mini_sweep):

@@ -1041,19 +1041,17 @@ def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str
 FIGURE_NICE = 10
 
 
-def _worker(data, out_dir, styles, tasks, results, parent: int) -> None:
-    """A figure process: takes ``(i, task)`` from ``tasks`` until None, puts ``(i, result, error)``; it stops
-    waiting for tasks once the process that started it (``parent``) is gone (a report killed: no figure process
-    goes on drawing into its staging dir)."""
-    import os
+def _worker(data, out_dir, styles, tasks, results, watch) -> None:
+    """A figure process: takes ``(i, task)`` from ``tasks`` until None, puts ``(i, result, error)``. ``watch`` is the
+    read end of a pipe whose write end only the report's process holds, and never writes to: it reads as ready once
+    that process is gone, and then this one takes no further task (a killed report's figure processes end with the
+    figure they are drawing, not with the report's last one)."""
     import queue
 
-    while True:
+    while not watch.poll():
         try:
             item = tasks.get(timeout=1.0)
         except queue.Empty:
-            if os.getppid() != parent:
-                return
             continue
         if item is None:
             return
@@ -1064,15 +1062,17 @@ def _worker(data, out_dir, styles, tasks, results, parent: int) -> None:
             results.put((i, None, traceback.format_exc()))
 
 
-def _lead(data, out_dir, styles, tasks, results, n: int, parent: int) -> None:
+def _lead(data, out_dir, styles, tasks, results, n: int, watch, keep) -> None:
     """The first figure process, at :data:`FIGURE_NICE`: imports and initialises matplotlib (:func:`_warm_up`),
     then starts ``n - 1`` more figure processes, forked from itself so that they share what it loaded, and works
-    as one of them (:func:`_worker`); it ends when they all have. The report's own process (``parent``) never
-    imports pyplot for its figures: it goes on to its tables and verdicts while this process loads (table4's
-    report: the verdicts 0.6 s sooner, medians of 5 alternating runs), and the import is paid once, as before."""
+    as one of them (:func:`_worker`); it ends when they all have. The report's own process never imports pyplot for
+    its figures: it goes on to its tables and verdicts while this process loads (table4's report: the verdicts 0.6 s
+    sooner, medians of 5 alternating runs), and the import is paid once, as before. ``keep``: this process's copy of
+    the write end of ``watch``'s pipe, closed first (:func:`_worker`)."""
     import multiprocessing
     import os
 
+    keep.close()
     try:
         os.nice(FIGURE_NICE)
     except OSError:  # not allowed here: drawn at the parent's priority
@@ -1082,11 +1082,11 @@ def _lead(data, out_dir, styles, tasks, results, n: int, parent: int) -> None:
     except Exception:  # noqa: BLE001 - each task then fails and reports why, as without the warm-up
         pass
     ctx = multiprocessing.get_context("fork")
-    helpers = [ctx.Process(target=_worker, args=(data, out_dir, styles, tasks, results, os.getpid()), daemon=True)
+    helpers = [ctx.Process(target=_worker, args=(data, out_dir, styles, tasks, results, watch), daemon=True)
                for _ in range(n - 1)]
     for p in helpers:
         p.start()
-    _worker(data, out_dir, styles, tasks, results, parent)
+    _worker(data, out_dir, styles, tasks, results, watch)
     for p in helpers:
         p.join()
 
@@ -1108,28 +1108,31 @@ def workers(n_tasks: int) -> int:
 def _start_forked(data, out_dir, styles, tasks, n: int):
     """``n`` forked figure processes (:func:`_lead` and the ``n - 1`` it forks), given every task; :func:`_collect`
     gathers their results. The returned process list holds the lead alone: it is alive until every figure process
-    has ended."""
+    has ended; the last item is the write end of the pipe the figure processes watch (:func:`_worker`), held here
+    until :func:`_collect` ends."""
     import multiprocessing
-    import os
 
     ctx = multiprocessing.get_context("fork")
     task_q, result_q = ctx.Queue(), ctx.Queue()
-    lead = ctx.Process(target=_lead, args=(data, out_dir, styles, task_q, result_q, n, os.getpid()), daemon=False)
+    watch, keep = ctx.Pipe(duplex=False)
+    lead = ctx.Process(target=_lead, args=(data, out_dir, styles, task_q, result_q, n, watch, keep), daemon=False)
     lead.start()
+    watch.close()
     for item in enumerate(tasks):
         task_q.put(item)
     for _ in range(n):
         task_q.put(None)
-    return [lead], result_q, tasks
+    return [lead], result_q, tasks, keep
 
 
 def _run_forked(data, out_dir, styles, tasks, n: int, done=lambda: None) -> list:
     return _collect(*_start_forked(data, out_dir, styles, tasks, n), done=done)
 
 
-def _collect(procs, result_q, tasks, done=lambda: None) -> list:
+def _collect(procs, result_q, tasks, keep=None, done=lambda: None) -> list:
     """The results of the figure processes, in task order (a task's failure raised here; ``done()`` called as
-    each arrives); the processes ended."""
+    each arrives); the processes ended: ``keep`` (:func:`_start_forked`) is closed first, so that after a failure
+    they take no further task."""
     import queue
 
     results: list = [None] * len(tasks)
@@ -1148,6 +1151,8 @@ def _collect(procs, result_q, tasks, done=lambda: None) -> list:
             pending -= 1
             done()
     finally:
+        if keep is not None:
+            keep.close()
         for p in procs:
             p.join(timeout=5)
             if p.is_alive():
@@ -1156,8 +1161,8 @@ def _collect(procs, result_q, tasks, done=lambda: None) -> list:
 
 
 def _warm_up() -> None:
-    """Import and initialise in the parent what every figure process needs (matplotlib's fonts and text layout),
-    so the forked processes share it instead of each paying for it."""
+    """Import and initialise what every figure process needs (matplotlib's fonts and text layout), in the process
+    the others are forked from (:func:`_lead`), so that they share it instead of each paying for it."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(2, 2))
     ax.plot([0, 1], [0, 1], label="d̂ σ θ")
