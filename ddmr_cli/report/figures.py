@@ -28,7 +28,7 @@ from ddmr_cli.storage.jobdir import safe_name  # a scenario name as one path com
 from ddmr_cli.report import signals as S
 from ddmr_cli.paper import numbers as paper_numbers
 from ddmr_cli.report.data import Job, ReportData, flatten
-from ddmr_cli.report.tables import fmt
+from ddmr_cli.report.tables import fmt, stats_frame, table4_frame
 from ddmr_cli.plots.common import (OKABE_ITO, REFERENCE_STYLE, StyleBook, draw_order, equal_aspect, log_scale,
                                    pyplot, save, thin)
 
@@ -689,10 +689,9 @@ class ScenarioFigures:
                title=self._title("Chattering in frequency: Welch spectrum of the applied voltage"))
         ax.grid(alpha=0.3, which="both")
         _legend(ax, self._labels())
-        m = self.data.metrics
         hf = []
         for job in self.jobs:
-            vals = m.loc[(m["job"] == job.dir.name) & (m["status"] == "ok"), "hf_fraction"].astype(float)
+            vals = self.data.ok_metrics(job)["hf_fraction"].astype(float)
             hf.append((job.label, f"{100 * float(vals.mean()):.2g} %" if vals.notna().any() else "–"))
         self._save(fig, "spectrum_u", "Welch spectrum of the control voltage",
                    f"Power spectral density of u − mean(u) over the whole run (Welch's method, Hann windows of "
@@ -800,9 +799,7 @@ class ScenarioFigures:
     def fig_spread(self, plt):
         values, labels, colors = [], [], []
         for job in self.jobs:
-            frame = self.data.metrics[(self.data.metrics["job"] == job.dir.name)
-                                      & (self.data.metrics["status"] == "ok")]
-            values.append(frame["deviation_mae"].astype(float).dropna().to_numpy())
+            values.append(self.data.ok_metrics(job)["deviation_mae"].astype(float).dropna().to_numpy())
             labels.append(job.label)
             colors.append(self.style(job)["color"])
         fig, ax = plt.subplots(figsize=(min(max(6, 1.6 * len(self.jobs) + 2), MAX_INCHES), 4.2))
@@ -1018,9 +1015,7 @@ def make_one(data: ReportData, out_dir: Path, styles: StyleBook, task: tuple[str
     """One figure task ``(scenario, method)``: its figures and notes."""
     scenario, method = task
     if task == TABLE4_TASK:
-        from ddmr_cli.report import tables as T
-
-        figure = fig_table4(T.table4_frame(T.stats_frame(data)), out_dir, styles, data.displays())
+        figure = fig_table4(table4_frame(stats_frame(data)), out_dir, styles, data.displays())
         return ([] if figure is None else [figure]), []
     if scenario == ACROSS:
         return fig_scenarios(data, out_dir, styles, pyplot()), []
