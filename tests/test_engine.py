@@ -139,6 +139,38 @@ def test_several_blocks_per_thread_do_not_change_the_numbers(monkeypatch):
         assert np.array_equal(values, blocks.series[4][channel], equal_nan=True), channel
 
 
+def test_the_step_state_is_released_before_the_metrics_are_formed(monkeypatch):
+    """A large batch's memory peaks while its metrics are formed: by then the runs' generators (800 bytes a run) and
+    controller states are gone, only the sums and the run records the metrics read are left."""
+    import gc
+    import weakref
+
+    from ddmr_cli.engine import metrics, simulation
+
+    made, alive_at_finalize = [], []
+    streams = simulation.NoiseStreams
+
+    class Tracked(streams):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(weakref.ref(self))
+
+    finalize = metrics.MetricAccumulator.finalize
+
+    def spying_finalize(self, state):
+        gc.collect()
+        alive_at_finalize.append(sum(ref() is not None for ref in made))
+        return finalize(self, state)
+
+    monkeypatch.setattr(simulation, "NoiseStreams", Tracked)
+    monkeypatch.setattr(metrics.MetricAccumulator, "finalize", spying_finalize)
+    sim = make_simulation(controller=make_smc(ndo=NonlinearDisturbanceObserver(50.0)), terrain=paper_terrain(),
+                          scenario=paper_scenario(1), duration=0.05)
+    result = simulate(sim, range(3))
+    assert len(made) == 1 and alive_at_finalize == [0]
+    assert np.isfinite(result.metrics["deviation_mae"][:, 0]).all()
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
 def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):

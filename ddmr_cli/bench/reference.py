@@ -19,7 +19,7 @@ without the RBF network), ideal sensor and actuator, control at every plant step
 without damping uncertainty (``paper_1``), any terrain zones, any trajectory (the engine's reference table).
 
 Noise: the engine's :class:`~ddmr_cli.model.noise.NoiseStreams` (one ``numpy.random.default_rng(seed)`` per run:
-3 normals for the OU initial state, then 3 per step, drawn in chunks of at most 16 MiB as the engine draws them),
+3 normals for the OU initial state, then 3 per step, drawn in chunks of the engine's budget as the engine draws them),
 so the kernel reads the very same streams; drawing them is part of the timed work (it is of the engine's too).
 
 Two layouts of the same loop (``layout=``):
