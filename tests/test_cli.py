@@ -343,6 +343,16 @@ def test_bench_times_hydras_own_work_per_job():
     assert 0 < low <= median < 10_000
 
 
+def test_bench_reads_the_hosts_ceiling_as_throughput_of_processes_at_once():
+    """The threads' ceiling: cores x (one process alone) / (cores processes together), median over the pairs; and
+    the real processes run (a tiny piece of work: a positive ratio, at most the cores and some timing slack)."""
+    from ddmr_cli.cli.bench import host_ceiling
+
+    walls = iter([1.0, 1.25, 1.0, 2.0, 1.0, 1.0])  # alone, together, ...: ratios 1.6, 1.0, 2.0
+    assert abs(host_ceiling(2, 10, repeats=3, wall=lambda n, _it: next(walls)) - 1.6) < 1e-12
+    assert 0.0 < host_ceiling(2, 1000, repeats=1) < 4.0
+
+
 def test_bench_names_whether_ddmr_loads_from_bytecode(monkeypatch, tmp_path):
     """The machine line says whether ddmr's modules load from .pyc or compile from source in every process."""
     import importlib.util

@@ -5,8 +5,9 @@ Prints the machine line, then
    controller; for smc_ndo and smc_ndo_nno at 50 and 1000 the engine beside the hand-fused reference kernel of
    the same loop on the same noise streams (:mod:`ddmr_cli.bench.reference`), timed in the same process, and the
    ratios, of the engine as ``ddmr run`` runs it and without the seed bands the reference does not compute (the
-   target: the engine at most 1.5x slower at equal work); on every core, as plain Python (the fallback), and the
-   compile and cache-load times;
+   target: the engine at most 1.5x slower at equal work); on every core, beside what every core gives independent
+   processes of pure CPU work on this machine (:func:`host_ceiling`, the most threads can give), as plain Python
+   (the fallback), and the compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
 3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it (and when the report printed
    its verdicts); 3b. of a 200-job sweep of one-seed 0.2 s runs (the per-job overhead), and Hydra's own work per
@@ -163,6 +164,32 @@ def thread_scaling(batch: int, controller: str, duration: float,
     return statistics.median(one), statistics.median(many), statistics.median(m / o for o, m in zip(one, many))
 
 
+#: a fixed piece of pure CPU work (no memory traffic, no threads, no library) for :func:`host_ceiling`
+_CPU_WORK = "s = 0\nfor i in range({n}):\n    s += i * i\n"
+
+
+def _processes_wall(n_processes: int, iterations: int) -> float:
+    """Wall seconds of ``n_processes`` Python processes started together, each doing the same :data:`_CPU_WORK`."""
+    code = _CPU_WORK.format(n=iterations)
+    started = time.perf_counter()
+    group = [subprocess.Popen([sys.executable, "-c", code]) for _ in range(n_processes)]
+    for process in group:
+        process.wait()
+    return time.perf_counter() - started
+
+
+def host_ceiling(cores: int, iterations: int, repeats: int = REPEATS,
+                 wall: Callable[[int, int], float] = _processes_wall) -> float:
+    """What ``cores`` cores give this machine's own CPU work: the throughput of ``cores`` independent processes
+    at once over one alone, the median of ``repeats`` alternating pairs (``wall(n, iterations)``: seconds of
+    ``n`` processes of the same work started together). No program's threads can scale further; on a host whose
+    "cores" share a physical core or are taken by other guests it is well under ``cores``."""
+    import statistics
+
+    alone, together = _alternating(repeats, lambda: wall(1, iterations), lambda: wall(cores, iterations))
+    return statistics.median(cores * a / t for a, t in zip(alone, together))
+
+
 def hydra_job_floor(repeats: int) -> tuple[float, float]:
     """Hydra's own work per job in ms of one core, min and median of ``repeats``: ``hydra.core.utils.run_job``
     (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files) around a task
@@ -308,6 +335,12 @@ def main(argv: list[str] | None = None) -> int:
         one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big])
     print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the median "
           f"of {REPEATS} alternating pairs; one thread {one / 1e6:.3f} M/s)")
+    if cores > 1:
+        with measuring(f"what {cores} cores give independent processes"):
+            ceiling = host_ceiling(cores, 2_000_000 if quick else 10_000_000)
+        print(f"   this machine's own ceiling: {cores} independent processes of pure CPU work at once run at {ceiling:.2f}x "
+              f"one alone (the median of {REPEATS} alternating pairs), the most {cores} threads can give here; the "
+              f"engine's threads reach {ratio / ceiling:.0%} of it")
     with measuring("the laws as plain Python"):
         python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
