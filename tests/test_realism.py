@@ -231,6 +231,45 @@ def test_operation_counts_match_the_laws_read_by_hand(counts):
     assert nno["add"] > 4 * 10 and nno["mul"] > 6 * 10  # basis, estimate and update: a few per neuron and wheel
 
 
+def test_operation_counts_are_kept_by_what_they_are_a_function_of(tmp_path, monkeypatch):
+    """Counts are counted once per key (the laws' sources, the parameters, dt), kept in the cache dir and read
+    back; a controller whose key changed is counted again, alone."""
+    import json
+    import subprocess as real_subprocess
+
+    from ddmr_cli.bench import cost
+
+    counted = []
+
+    def fake_run(argv, **kwargs):
+        names = argv[3:]
+        counted.append(names)
+        out = json.dumps({name: {"add": float(len(name) + len(counted))} for name in names})
+        return real_subprocess.CompletedProcess(argv, 0, stdout=out + "\n", stderr="")
+
+    monkeypatch.setattr(cost.subprocess, "run", fake_run)
+    keys = {"pid": "k1", "smc": "k2"}
+    first = cost.operation_counts(["pid", "smc"], keys, tmp_path)
+    assert counted == [["pid", "smc"]] and first == {"pid": {"add": 4.0}, "smc": {"add": 4.0}}
+    assert cost.operation_counts(["pid", "smc"], keys, tmp_path) == first and len(counted) == 1
+    again = cost.operation_counts(["pid", "smc"], {"pid": "k1", "smc": "k3"}, tmp_path)
+    assert counted[1] == ["smc"] and again == {"pid": {"add": 4.0}, "smc": {"add": 5.0}}
+    assert cost.operation_counts(["pid"], keys) == {"pid": {"add": 6.0}}  # no cache: always counted
+
+
+def test_the_counts_key_follows_the_parameters_and_the_step():
+    from ddmr_cli import paper_controller, paper_robot
+    from ddmr_cli.bench.cost import counts_key
+    from ddmr_cli.model.robot import NominalModel
+
+    nominal = NominalModel.from_robot(paper_robot())
+    base = counts_key(paper_controller("smc_ndo"), nominal, 0.001)
+    assert base == counts_key(paper_controller("smc_ndo"), nominal, 0.001)
+    assert base != counts_key(paper_controller("smc_ndo", "controller.switching_gain=21"), nominal, 0.001)
+    assert base != counts_key(paper_controller("smc_ndo"), nominal, 0.002)
+    assert base != counts_key(paper_controller("smc_ndo_nno"), nominal, 0.001)
+
+
 def test_m4f_estimate_is_the_stated_cycle_model():
     from ddmr_cli.bench.cost import M4F_CYCLES, M4F_OVERHEAD, m4f_cycles
 

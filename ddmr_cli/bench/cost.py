@@ -17,15 +17,19 @@ an estimate for a Cortex-M4F.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+
+from ddmr_cli.storage.io import atomic_write
 
 #: Cortex-M4F cycles per single-precision operation (docs/model.md §10; module docstring)
 M4F_CYCLES = {"add": 1, "mul": 1, "div": 14, "sqrt": 14, "cmp": 2, "other": 1, "transcendental": 100}
@@ -171,16 +175,64 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
     return {key: value / n for key, value in counts.items()}
 
 
-def operation_counts(names: list[str]) -> dict[str, dict[str, float]]:
+def operation_counts(names: list[str], keys: dict[str, str] | None = None,
+                     cache: Path | None = None) -> dict[str, dict[str, float]]:
     """:func:`count_operations` for the packaged controllers ``names`` (conf/controller), in a subprocess with
-    ``NUMBA_DISABLE_JIT=1``; ``{name: counts}``."""
-    code = ("import json, sys; from ddmr_cli.bench.cost import packaged_counts; "
-            "print(json.dumps(packaged_counts(sys.argv[1:])))")
-    out = subprocess.run([sys.executable, "-c", code, *names], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
-                         capture_output=True, text=True, check=True).stdout
+    ``NUMBA_DISABLE_JIT=1``; ``{name: counts}``.
+
+    With a ``cache`` directory and each controller's :func:`counts_key` in ``keys``, counts found there under their
+    key are read, and the others counted and kept there: the counts are a function of what the key hashes, and
+    the subprocess takes 1.7 s (its imports, and the laws run on counting floats)."""
     import json
 
-    return json.loads(out.strip().splitlines()[-1])
+    found = {}
+    if cache is not None and keys is not None:
+        for name in names:
+            path = cache / f"counts_{keys[name]}.json"
+            with contextlib.suppress(OSError, ValueError):
+                found[name] = json.loads(path.read_text(encoding="utf-8"))
+    missing = [name for name in names if name not in found]
+    if missing:
+        code = ("import json, sys; from ddmr_cli.bench.cost import packaged_counts; "
+                "print(json.dumps(packaged_counts(sys.argv[1:])))")
+        out = subprocess.run([sys.executable, "-c", code, *missing], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+                             capture_output=True, text=True, check=True).stdout
+        counted = json.loads(out.strip().splitlines()[-1])
+        for name in missing:
+            found[name] = counted[name]
+            if cache is not None and keys is not None:
+                with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next count
+                    atomic_write(cache / f"counts_{keys[name]}.json",
+                                 lambda tmp, name=name: Path(tmp).write_text(json.dumps(counted[name]),
+                                                                             encoding="utf-8"))
+    return {name: found[name] for name in names}
+
+
+def counts_key(controller, nominal, dt: float) -> str:
+    """What a controller's operation counts are a function of, hashed: the sources its laws inline (and the
+    compiler's version: :func:`~ddmr_cli.engine.kernels.sources_digest`), this module (the counting and the
+    inputs), the laws' parameters and state layout, and ``dt``."""
+    import hashlib
+
+    from ddmr_cli.engine.kernels import sources_digest
+
+    digest = hashlib.sha256(sources_digest(controller.laws.__name__).encode())
+    digest.update(Path(__file__).read_bytes())
+
+    def feed(value) -> None:  # every number's bytes, nested tuples (named ones too) element by element
+        if isinstance(value, (tuple, list)):
+            digest.update(f"({len(value)}".encode())
+            for item in value:
+                feed(item)
+            digest.update(b")")
+            return
+        array = np.asarray(value)
+        digest.update(f"{array.dtype.str}{array.shape}".encode())
+        digest.update(array.tobytes())
+
+    feed((controller.law_parameters(nominal, dt), float(dt)))
+    digest.update(str(controller.initial_state(1).dtype.descr).encode())
+    return digest.hexdigest()[:16]
 
 
 def packaged_counts(names: list[str]) -> dict[str, dict[str, float]]:
@@ -209,11 +261,15 @@ def cost_table(names: list[str], repeats: int = 30, n: int = 2000) -> list[dict]
     from ddmr_cli.config.presets import paper_controller, paper_robot, paper_config
     from ddmr_cli.model.robot import NominalModel
 
+    from ddmr_cli.engine.kernels import cache_dir
+
     nominal, dt = NominalModel.from_robot(paper_robot()), float(paper_config().simulation.dt)
-    counts = operation_counts(names)
+    controllers = {name: paper_controller(name) for name in names}
+    counts = operation_counts(names, {name: counts_key(c, nominal, dt) for name, c in controllers.items()},
+                              cache_dir("counts"))
     rows = []
     for name in names:
-        ns_min, ns_median = time_per_step(paper_controller(name), nominal, dt, n=n, repeats=repeats)
+        ns_min, ns_median = time_per_step(controllers[name], nominal, dt, n=n, repeats=repeats)
         c = counts[name]
         cycles = m4f_cycles(c)
         rows.append({"controller": name, "ns_min": ns_min, "ns_median": ns_median, "flops": flops(c),
@@ -229,8 +285,9 @@ def assumptions() -> str:
     return (f"Cortex-M4F at {M4F_CLOCK_HZ / 1e6:g} MHz, single precision: cycles per operation {costs} "
             f"(transcendental = libm expf/tanhf, assumed); x{M4F_OVERHEAD:g} for loads, stores and branches; "
             f"budget = {BUDGET_PERIOD * 1e3:g} ms (1 kHz). Counts by instrumenting the pure-Python laws "
-            f"(NUMBA_DISABLE_JIT=1), averaged over 200 steps of cruise-like inputs.")
+            f"(NUMBA_DISABLE_JIT=1), averaged over 200 steps of cruise-like inputs; counted once for each version "
+            f"of the laws and their parameters, and kept in ddmr's cache.")
 
 
-__all__ = ["control_steps", "time_per_step", "count_operations", "operation_counts", "packaged_counts",
+__all__ = ["control_steps", "time_per_step", "count_operations", "counts_key", "operation_counts", "packaged_counts",
            "m4f_cycles", "flops", "cost_table", "assumptions", "M4F_CYCLES", "M4F_OVERHEAD", "M4F_CLOCK_HZ"]
