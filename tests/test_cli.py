@@ -343,6 +343,38 @@ def test_bench_times_hydras_own_work_per_job():
     assert 0 < low <= median < 10_000
 
 
+def test_the_program_and_the_task_function_collect_the_youngest_generation_less_often(monkeypatch):
+    """The ddmr program and Hydra's task function (what a sweep's worker runs) raise the youngest generation's
+    threshold; the Python API leaves the interpreter's alone."""
+    import gc
+
+    from ddmr_cli.cli import hydra_main, main as cli_main
+    from ddmr_cli.cli.collector import YOUNGEST
+
+    saved = gc.get_threshold()
+    try:
+        gc.set_threshold(700, 10, 10)
+        assert cli_main.console(["--version"]) == 0 and gc.get_threshold() == (700, 10, 10)
+        monkeypatch.setattr(sys, "argv", ["ddmr", "--version"])
+        assert cli_main.console() == 0 and gc.get_threshold() == (YOUNGEST, 10, 10)
+        gc.unfreeze()  # the program freezes what it loaded before it exits
+
+        class Reached(Exception):
+            pass
+
+        def reached():
+            raise Reached
+
+        gc.set_threshold(700, 10, 10)
+        monkeypatch.setattr(hydra_main, "job_place", reached)
+        with pytest.raises(Reached):
+            hydra_main.main.__wrapped__(None)
+        assert gc.get_threshold() == (YOUNGEST, 10, 10)
+    finally:
+        gc.unfreeze()
+        gc.set_threshold(*saved)
+
+
 def test_bench_reads_the_hosts_ceiling_as_throughput_of_processes_at_once():
     """The threads' ceiling: cores x (one process alone) / (cores processes together), median over the pairs; and
     the real processes run (a tiny piece of work: a positive ratio, at most the cores and some timing slack)."""

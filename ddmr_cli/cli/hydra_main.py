@@ -16,6 +16,7 @@ from hydra_plugins.ddmr_sweeper.ddmr_sweeper import DdmrSweeper
 from omegaconf import DictConfig
 
 from ddmr_cli import config  # noqa: F401  (registers the config schemas)
+from ddmr_cli.cli.collector import collect_less_often
 from ddmr_cli.job import JobPlace, run_job
 
 # hydra/sweeper=ddmr (conf/launcher/*.yaml) and hydra/sweeper=ddmr_optuna (conf/tuning, the calibration search):
@@ -34,6 +35,7 @@ def job_place() -> JobPlace:
 
 @hydra.main(version_base="1.3", config_path="pkg://ddmr_cli.conf", config_name="config")
 def main(cfg: DictConfig) -> float | list[float] | None:
+    collect_less_often()  # a sweep's worker process (the ddmr program has done so already)
     place = job_place()
     if cfg.get("tuning") is not None:  # a trial of a tuning study: the objective goes back to the Optuna sweeper
         from ddmr_cli.study.tuning import run_trial
