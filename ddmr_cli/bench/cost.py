@@ -29,7 +29,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ddmr_cli.storage.io import atomic_write
+from ddmr_cli.storage.io import write_text
 
 #: Cortex-M4F cycles per single-precision operation (docs/model.md §10; module docstring)
 M4F_CYCLES = {"add": 1, "mul": 1, "div": 14, "sqrt": 14, "cmp": 2, "other": 1, "transcendental": 100}
@@ -185,12 +185,11 @@ def operation_counts(names: list[str], keys: dict[str, str] | None = None,
     the subprocess takes 1.7 s (its imports, and the laws run on counting floats)."""
     import json
 
+    paths = {name: cache / f"counts_{keys[name]}.json" for name in names} if cache and keys else {}
     found = {}
-    if cache is not None and keys is not None:
-        for name in names:
-            path = cache / f"counts_{keys[name]}.json"
-            with contextlib.suppress(OSError, ValueError):
-                found[name] = json.loads(path.read_text(encoding="utf-8"))
+    for name, path in paths.items():
+        with contextlib.suppress(OSError, ValueError):
+            found[name] = json.loads(path.read_text(encoding="utf-8"))
     missing = [name for name in names if name not in found]
     if missing:
         code = ("import json, sys; from ddmr_cli.bench.cost import packaged_counts; "
@@ -200,11 +199,9 @@ def operation_counts(names: list[str], keys: dict[str, str] | None = None,
         counted = json.loads(out.strip().splitlines()[-1])
         for name in missing:
             found[name] = counted[name]
-            if cache is not None and keys is not None:
+            if name in paths:
                 with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next count
-                    atomic_write(cache / f"counts_{keys[name]}.json",
-                                 lambda tmp, name=name: Path(tmp).write_text(json.dumps(counted[name]),
-                                                                             encoding="utf-8"))
+                    write_text(paths[name], json.dumps(counted[name]))
     return {name: found[name] for name in names}
 
 
@@ -259,9 +256,8 @@ def cost_table(names: list[str], repeats: int = 30, n: int = 2000) -> list[dict]
     """One row per packaged controller: ns per step (min, median), operation counts, M4F cycles and the fraction
     of a 1 kHz budget at 168 MHz."""
     from ddmr_cli.config.presets import paper_controller, paper_robot, paper_config
-    from ddmr_cli.model.robot import NominalModel
-
     from ddmr_cli.engine.kernels import cache_dir
+    from ddmr_cli.model.robot import NominalModel
 
     nominal, dt = NominalModel.from_robot(paper_robot()), float(paper_config().simulation.dt)
     controllers = {name: paper_controller(name) for name in names}
