@@ -165,3 +165,30 @@ def test_a_composition_kept_for_some_values_serves_others(cache, monkeypatch):
             ours = OmegaConf.to_container(compose_config(overrides, return_hydra_config=True))
         assert ours == _hydras_own(overrides)
     assert loaded == [False, True]
+
+
+def test_the_python_api_composes_through_the_cache(cache, monkeypatch):
+    """``paper_config`` (the Python API: scripts, the bench, the cost table) composes a set of group choices once and
+    keeps it; a new process (the in-process memo cleared) loads it, with other values, and gets Hydra's own
+    composition of its overrides (the hydra node left out, as Hydra's compose API leaves it)."""
+    from ddmr_cli.config import presets
+
+    loaded = _recording_loads(monkeypatch)
+    presets._composed.cache_clear()
+    try:
+        for overrides in (("controller=smc_ndo", "scenario=paper_2"),
+                          ("controller=smc_ndo", "controller.lam=9", "scenario=paper_2", "simulation.duration=2")):
+            ours = OmegaConf.to_container(presets.paper_config(*overrides))
+            assert OmegaConf.is_readonly(presets.paper_config(*overrides))
+            presets._composed.cache_clear()
+            import os
+
+            os.environ[skeleton_cache.SWITCH] = "0"
+            try:
+                hydra_own = OmegaConf.to_container(compose_config(list(overrides)))
+            finally:
+                del os.environ[skeleton_cache.SWITCH]
+            assert ours == hydra_own
+    finally:
+        presets._composed.cache_clear()
+    assert loaded == [False, True]  # composed by the first call, loaded by the second
