@@ -83,11 +83,19 @@ def loading_through(load: Callable[..., Any]) -> Iterator[None]:
         return load(self, functools.partial(original, self), config_name, overrides, run_mode, from_shell,
                     validate_sweep_overrides)
 
+    load_configuration.ddmr_load = load  # what current_load reads
     ConfigLoaderImpl.load_configuration = load_configuration
     try:
         yield
     finally:
         ConfigLoaderImpl.load_configuration = original
+
+
+def current_load() -> Callable[..., Any] | None:
+    """The ``load`` of the innermost :func:`loading_through` context this process is in, or None outside one."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    return getattr(ConfigLoaderImpl.load_configuration, "ddmr_load", None)
 
 
 def cache_plugin_scan() -> None:
@@ -213,6 +221,6 @@ def was_enqueued(trial: Any) -> bool:
     return ENQUEUED_ATTR in trial.system_attrs
 
 
-__all__ = ["HYDRA_SUPPORTED", "check_hydra", "apply_overrides", "overrides_dirname", "basic_sweeper", "run_hydra_job",
-           "split_sweep", "locate", "config_repository",
+__all__ = ["HYDRA_SUPPORTED", "check_hydra", "apply_overrides", "current_load", "overrides_dirname", "basic_sweeper",
+           "run_hydra_job", "split_sweep", "locate", "config_repository",
            "OPTUNA_MIN", "KILLED_ATTR", "ENQUEUED_ATTR", "require_optuna", "mark_killed", "was_enqueued"]

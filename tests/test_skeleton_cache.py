@@ -192,3 +192,15 @@ def test_the_python_api_composes_through_the_cache(cache, monkeypatch):
     finally:
         presets._composed.cache_clear()
     assert loaded == [False, True]  # composed by the first call, loaded by the second
+
+
+def test_a_memo_within_another_is_that_one(cache, monkeypatch):
+    """``compose_config`` inside the command line's memo (a run's validation, a sweep's skeletons) asks the cache
+    once per composition, not once per memo: the inner context is the outer one's memo."""
+    loaded = _recording_loads(monkeypatch)
+    with compositions_once() as outer:
+        with compositions_once() as inner:
+            assert inner is outer
+            compose_config(["controller=adrc", "scenario=paper_2"])
+        compose_config(["controller=adrc", "scenario=paper_2", "run.n_runs=4"])
+    assert loaded == [False]  # composed once; the second call a copy of the memo's

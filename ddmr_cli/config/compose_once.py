@@ -256,9 +256,14 @@ def _record_process(cfg: DictConfig) -> None:
 @contextlib.contextmanager
 def compositions_once() -> Iterator[CompositionMemo]:
     """Within the context, every whole composition of this process goes through one :class:`CompositionMemo`
-    (:func:`ddmr_cli.compat.loading_through`). Yields the memo."""
-    from ddmr_cli.compat import loading_through
+    (:func:`ddmr_cli.compat.loading_through`). Yields the memo; within another such context, that one's memo (a
+    composition asked of the cache once, not once per context)."""
+    from ddmr_cli.compat import current_load, loading_through
 
+    active = getattr(current_load(), "__self__", None)
+    if isinstance(active, CompositionMemo):
+        yield active
+        return
     memo = CompositionMemo()
     with loading_through(memo.load):
         yield memo

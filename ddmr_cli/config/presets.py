@@ -9,12 +9,10 @@ Hydra (overrides as on the command line) and build the objects it describes::
     sim = paper_simulation(controller=paper_controller("pid", "controller.kp=8"), duration=5.0)
 
 A composition is memoised per override tuple (the composed config is read-only plain data; every call builds
-fresh objects from it), so tests and scripts can call these freely. It goes through the composition memo of the
-command line (:func:`ddmr_cli.config.compose_once.compositions_once`): the defaults tree of a set of group choices
-is composed by Hydra once and kept in ddmr's cache between processes (:mod:`ddmr_cli.config.skeleton_cache`), the
-value overrides applied to a copy as Hydra's loader applies them. A new process composes a controller's config in
-about 0.02 s instead of 0.3 s (measured: 4 controllers, 0.27-0.38 s each by Hydra, 0.02 s each loaded), to the
-same config. Like Hydra's compose API, not for concurrent threads.
+fresh objects from it), so tests and scripts can call these freely. A composition goes through the composition
+memo (:func:`ddmr_cli.config.compose_config`): a set of group choices is composed by Hydra once and kept in ddmr's
+cache between processes, so a new process composes a controller's config in about 0.02 s instead of 0.3 s
+(measured: 4 controllers, 0.27-0.38 s each by Hydra, 0.02-0.03 s each loaded), to the same config.
 """
 
 from __future__ import annotations
@@ -31,10 +29,8 @@ from ddmr_cli.config.build import build_robot, build_scenario, build_simulation,
 @lru_cache(maxsize=64)
 def _composed(overrides: tuple[str, ...]) -> DictConfig:
     from ddmr_cli.config import compose_config
-    from ddmr_cli.config.compose_once import compositions_once
 
-    with compositions_once():
-        cfg = compose_config(list(overrides))
+    cfg = compose_config(list(overrides))
     OmegaConf.set_readonly(cfg, True)
     return cfg
 
