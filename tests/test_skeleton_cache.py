@@ -204,3 +204,19 @@ def test_a_memo_within_another_is_that_one(cache, monkeypatch):
             compose_config(["controller=adrc", "scenario=paper_2"])
         compose_config(["controller=adrc", "scenario=paper_2", "run.n_runs=4"])
     assert loaded == [False]  # composed once; the second call a copy of the memo's
+
+
+def test_a_search_path_named_by_an_override_is_read_each_time(cache, tmp_path):
+    """``hydra.searchpath=[file://...]`` adds a search path while Hydra composes, after the key is made, so the key
+    cannot hash its files: a composition that names one is never kept on disk, and an edit of a file there shows
+    in the next process (the kept composition of the first served the second, stale, before)."""
+    (tmp_path / "controller").mkdir()
+    mine = tmp_path / "controller" / "mine.yaml"
+    overrides = [f"hydra.searchpath=[file://{tmp_path}]", "controller=mine"]
+    gains = []
+    for gain in (11.0, 22.0):
+        mine.write_text(f"defaults:\n  - smc\n  - _self_\nswitching_gain: {gain}\n")
+        with compositions_once():  # a new memo: as a new process
+            gains.append(compose_config(overrides).controller.switching_gain)
+    assert gains == [11.0, 22.0]
+    assert not list(cache.glob("*.pkl"))

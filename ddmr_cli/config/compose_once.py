@@ -219,8 +219,11 @@ class CompositionMemo(OverrideParser):
                 derived = str(cfg.hydra.job.get("name")) == str(JobRuntime().get("name"))
                 return multirun, pickle.dumps(cfg, protocol=pickle.HIGHEST_PROTOCOL), derived
 
-            # kept on disk between processes when the search path is the packaged config's (skeleton_cache)
-            kept, loaded = cached_composition(key, multirun, composed)
+            # kept on disk between processes when the search path is the packaged config's (skeleton_cache); a
+            # search path an override adds (hydra.searchpath, as --config-dir adds it) is read while composing, after
+            # the key is made, so the key would not hash its files: such a composition is made each time
+            named_path = any(o.get_key_element() == "hydra.searchpath" for o in parsed)
+            kept, loaded = (composed(), False) if named_path else cached_composition(key, multirun, composed)
             self._kept[key] = kept
             if loaded and validate_sweep_overrides:
                 check_sweep_overrides(parsed, run_mode, from_shell)

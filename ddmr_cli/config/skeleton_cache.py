@@ -21,7 +21,8 @@ schema or a version makes a new key. A file that does not load (truncated by a c
 a config whose classes this process cannot import: a plugin's, kept by a process that had the plugin) is
 composed again, by Hydra, which reports what is missing, and replaced; every write is atomic (a temporary file
 renamed), so concurrent processes never read half a file, and they write the same bytes. Only a search path of
-packaged sources is cached: with a user's config dir (``--config-dir``) everything composes as Hydra does.
+packaged sources is cached: with a user's config dir (``--config-dir``), or a search path an override names
+(``hydra.searchpath=[...]``, read after the key is made), everything composes as Hydra does.
 ``DDMR_SKELETON_CACHE=0`` turns it off.
 """
 
