@@ -111,6 +111,27 @@ def test_an_edit_of_any_config_file_changes_the_key(monkeypatch):
     assert skeleton_cache.config_digest() == before
 
 
+def test_an_edit_of_a_hydra_plugin_changes_the_key(monkeypatch):
+    """A plugin's structured config (the Optuna sweeper's, a launcher's) is composed into the hydra node: an edit
+    or an upgrade of its source, with the same file names, makes a new key."""
+    before = skeleton_cache.config_digest()
+    real = skeleton_cache._plugin_files
+    names = [name for name, _ in real(__import__("hydra_plugins").__path__)]
+    assert any(name.endswith("config.py") for name in names), names
+
+    def edited(paths):
+        return [(name, data + b"\n# edited" if name.endswith("config.py") else data) for name, data in real(paths)]
+
+    monkeypatch.setattr(skeleton_cache, "_plugin_files", edited)
+    skeleton_cache.config_digest.cache_clear()
+    try:
+        assert skeleton_cache.config_digest() != before
+    finally:
+        monkeypatch.undo()
+        skeleton_cache.config_digest.cache_clear()
+    assert skeleton_cache.config_digest() == before
+
+
 @pytest.mark.parametrize("overrides", [["controller=pid", "scenario=paper_2"], ["+experiment=table4"],
                                        ["controller=smc", "controller.lam=7", "sensor=encoder"]])
 def test_a_loaded_composition_equals_hydras(cache, overrides, monkeypatch):

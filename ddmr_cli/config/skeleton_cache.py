@@ -14,7 +14,8 @@ it was composed from:
   composition made in one directory serves a run in another;
 - every file of each packaged source of the search path (``pkg://ddmr_cli.conf``, ``pkg://hydra.conf``: name and
   bytes) and the schema module that registers the structured configs (``ddmr_cli/config/schema.py``);
-- the Python, Hydra and OmegaConf versions and the ``hydra_plugins`` modules installed.
+- the Python, Hydra and OmegaConf versions and the source of every ``hydra_plugins`` module installed (a
+  plugin's structured config is composed into the ``hydra`` node: an edit or an upgrade makes a new key).
 
 A later process with the same key loads it (about 2 ms) instead of composing; an edit of any config file, the
 schema or a version makes a new key. A file that does not load (truncated by a crash, another version's pickle,
@@ -54,7 +55,7 @@ def enabled() -> bool:
 def config_digest(search_path: tuple = (("main", "pkg://ddmr_cli.conf"),)) -> str:
     """The hash of what a composition on ``search_path`` (``(provider, path)`` pairs) is composed from, but its
     overrides (module docstring): every file of each ``pkg://`` source, the schema module, the versions and the
-    installed ``hydra_plugins``; read once per process and search path (a few ms)."""
+    source of the installed ``hydra_plugins``; read once per process and search path (a few ms)."""
     import importlib.util
     from importlib import resources
 
@@ -63,13 +64,15 @@ def config_digest(search_path: tuple = (("main", "pkg://ddmr_cli.conf"),)) -> st
 
     digest = hashlib.sha256(f"python={sys.version} hydra={hydra.__version__} omegaconf={omegaconf.__version__}"
                             .encode())
-    try:
+    try:  # every plugin's source: their structured configs (a launcher's, a sweeper's) are composed into hydra.*
         import hydra_plugins
 
-        plugins = sorted({name for path in hydra_plugins.__path__ for name in os.listdir(path)})
+        plugins = sorted(_plugin_files(hydra_plugins.__path__))
     except (ImportError, OSError):
         plugins = []
-    digest.update(repr(plugins).encode())
+    for name, data in plugins:
+        digest.update(name.encode())
+        digest.update(data)
     for _, source in search_path:
         if str(source).startswith("pkg://"):
             module = str(source)[len("pkg://"):].replace("/", ".")
@@ -78,6 +81,20 @@ def config_digest(search_path: tuple = (("main", "pkg://ddmr_cli.conf"),)) -> st
                 digest.update(data)
     digest.update(Path(importlib.util.find_spec(SCHEMA_MODULE).origin).read_bytes())
     return digest.hexdigest()
+
+
+def _plugin_files(paths) -> list[tuple[str, bytes]]:
+    """``(name, bytes)`` of every ``.py`` file of the ``hydra_plugins`` namespace (``paths``: its ``__path__``),
+    named relative to it: an edit or an upgrade of a plugin changes the key, not only a plugin added or removed."""
+    out = []
+    for path in paths:
+        for root, dirs, files in os.walk(path):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+            for name in files:
+                if name.endswith(".py"):
+                    full = Path(root, name)
+                    out.append((str(full.relative_to(path)), full.read_bytes()))
+    return out
 
 
 def _files(node, prefix: str = ""):
