@@ -101,14 +101,19 @@ def test_an_edit_of_any_config_file_changes_the_key(monkeypatch):
         for name, data in real(node, prefix):
             yield name, (data + b"\n# edited" if name == "controller/pid.yaml" else data)
 
-    monkeypatch.setattr(skeleton_cache, "_files", edited)
+    assert _digest_with(monkeypatch, "_files", edited) != before
+    assert skeleton_cache.config_digest() == before
+
+
+def _digest_with(monkeypatch, reader: str, edited) -> str:
+    """The config digest with ``skeleton_cache.<reader>`` replaced by ``edited``; the reader is restored after."""
+    monkeypatch.setattr(skeleton_cache, reader, edited)
     skeleton_cache.config_digest.cache_clear()
     try:
-        assert skeleton_cache.config_digest() != before
+        return skeleton_cache.config_digest()
     finally:
         monkeypatch.undo()
         skeleton_cache.config_digest.cache_clear()
-    assert skeleton_cache.config_digest() == before
 
 
 def test_an_edit_of_a_hydra_plugin_changes_the_key(monkeypatch):
@@ -122,13 +127,7 @@ def test_an_edit_of_a_hydra_plugin_changes_the_key(monkeypatch):
     def edited(paths):
         return [(name, data + b"\n# edited" if name.endswith("config.py") else data) for name, data in real(paths)]
 
-    monkeypatch.setattr(skeleton_cache, "_plugin_files", edited)
-    skeleton_cache.config_digest.cache_clear()
-    try:
-        assert skeleton_cache.config_digest() != before
-    finally:
-        monkeypatch.undo()
-        skeleton_cache.config_digest.cache_clear()
+    assert _digest_with(monkeypatch, "_plugin_files", edited) != before
     assert skeleton_cache.config_digest() == before
 
 
