@@ -146,12 +146,12 @@ def test_a_loaded_composition_equals_hydras(cache, overrides, monkeypatch):
     assert results[0] == hydra_own and results[1] == hydra_own
 
 
-def _hydras_own(overrides) -> dict:
+def _hydras_own(overrides, return_hydra_config: bool = True) -> dict:
     import os
 
     os.environ[skeleton_cache.SWITCH] = "0"
     try:
-        return OmegaConf.to_container(compose_config(overrides, return_hydra_config=True))
+        return OmegaConf.to_container(compose_config(overrides, return_hydra_config=return_hydra_config))
     finally:
         del os.environ[skeleton_cache.SWITCH]
 
@@ -201,14 +201,7 @@ def test_the_python_api_composes_through_the_cache(cache, monkeypatch):
             ours = OmegaConf.to_container(presets.paper_config(*overrides))
             assert OmegaConf.is_readonly(presets.paper_config(*overrides))
             presets._composed.cache_clear()
-            import os
-
-            os.environ[skeleton_cache.SWITCH] = "0"
-            try:
-                hydra_own = OmegaConf.to_container(compose_config(list(overrides)))
-            finally:
-                del os.environ[skeleton_cache.SWITCH]
-            assert ours == hydra_own
+            assert ours == _hydras_own(list(overrides), return_hydra_config=False)
     finally:
         presets._composed.cache_clear()
     assert loaded == [False, True]  # composed by the first call, loaded by the second

@@ -84,17 +84,10 @@ def config_digest(search_path: tuple = (("main", "pkg://ddmr_cli.conf"),)) -> st
 
 
 def _plugin_files(paths) -> list[tuple[str, bytes]]:
-    """``(name, bytes)`` of every ``.py`` file of the ``hydra_plugins`` namespace (``paths``: its ``__path__``),
-    named relative to it: an edit or an upgrade of a plugin changes the key, not only a plugin added or removed."""
-    out = []
-    for path in paths:
-        for root, dirs, files in os.walk(path):
-            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-            for name in files:
-                if name.endswith(".py"):
-                    full = Path(root, name)
-                    out.append((str(full.relative_to(path)), full.read_bytes()))
-    return out
+    """``(name, bytes)`` of every file of the ``hydra_plugins`` namespace (``paths``: its ``__path__``), named
+    relative to it (:func:`_files` of each directory; an entry that is no directory, such as an editable install's
+    path hook, holds none): an edit or an upgrade of a plugin changes the key, not only a plugin added or removed."""
+    return [entry for path in map(Path, paths) if path.is_dir() for entry in _files(path)]
 
 
 def _files(node, prefix: str = ""):
