@@ -117,3 +117,12 @@ def test_a_target_outside_the_project_is_still_refused():
     node = OmegaConf.create({"_target_": "os.system", "command": "true"})
     with pytest.raises(ConfigError, match="only ddmr_cli"):
         build.instantiate_checked(node, "trajectory")
+
+
+def test_a_refused_value_reached_through_an_interpolation_names_its_key():
+    """A constructor's refusal of a value that an interpolation gave is the key's one-line error (before, Hydra's
+    instantiate of the node's copy could not resolve the interpolation: "ddmr: error: ?: None")."""
+    cfg = compose_config(["controller=smc_ndo_nno", "controller.ndo.gain=${controller.lam}", "controller.lam=-1"])
+    with pytest.raises(ConfigError) as refused:
+        build.build_simulation(cfg)
+    assert refused.value.key == "controller.ndo.gain" and "must be > 0" in str(refused.value)

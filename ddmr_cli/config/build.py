@@ -76,21 +76,27 @@ def instantiate_checked(node: DictConfig, path: str):
     its copies of the node (a controller: 0.5 ms against 8 ms, measured; every job builds its controller in the
     sweep's plan and again in its worker, every study sample and tuning trial once). A node that uses another of
     Hydra's keys (:data:`HYDRA_KEYS`) or a missing value, and any failure, goes to Hydra's instantiate, so what
-    is built and every error are Hydra's (tests/test_instantiate.py holds the two to each other)."""
+    is built and every error are Hydra's (tests/test_instantiate.py holds the two to each other). Hydra is given
+    the node's resolved values: its own copy of a part of the config lost the rest, so an interpolation to another
+    key (``controller.ndo.gain=${controller.lam}``) failed with no key named."""
     from hydra.utils import instantiate
 
     check_targets(node, path)
-    keys = [k for k in node.keys() if k != DISPLAY]
     try:
         plain = OmegaConf.to_container(node, resolve=True, throw_on_missing=True)
-        plain.pop(DISPLAY, None)
-        if not _uses_hydra_keys(plain):
-            return _construct(plain)
     except Exception:  # noqa: BLE001 - Hydra's instantiate below raises its own error for it
-        pass
-    if len(keys) < len(node):
-        node = OmegaConf.masked_copy(node, keys)
-    return instantiate(node, _convert_="all")
+        plain = None
+    if plain is None:
+        keys = [k for k in node.keys() if k != DISPLAY]
+        return instantiate(OmegaConf.masked_copy(node, keys) if len(keys) < len(node) else node, _convert_="all")
+    plain.pop(DISPLAY, None)
+    if not _uses_hydra_keys(plain):
+        try:
+            return _construct(plain)
+        except Exception:  # noqa: BLE001 - Hydra's instantiate below raises its own error for it
+            pass
+    # the resolved values, not a copy of the node: a copy loses the rest of the config its interpolations name
+    return instantiate(OmegaConf.create(plain), _convert_="all")
 
 
 def _uses_hydra_keys(value: Any) -> bool:
