@@ -209,8 +209,9 @@ def _write(cfg: DictConfig, sim, result, out: Path, overrides, digest, plot_proc
         plot_processes.send(result.series[seed], result.controller, result.scenario, seed, out / io.PLOTS_DIR,
                             settle_time=float(cfg.metrics.settle_time))
     io.write_text(out / io.CONFIG, io.yaml_text(result_config(cfg, display=True)))
-    io.write_csv(out / io.METRICS_CSV, result.iter_rows())
-    io.write_csv(out / io.SEGMENTS_CSV, result.iter_rows(segments=True))
+    for name, segments in ((io.METRICS_CSV, False), (io.SEGMENTS_CSV, True)):
+        columns, rows = result.table(segments)
+        io.write_csv(out / name, rows, columns=columns)
     if result.bands:
         io.write_bands(out / io.BANDS, result.bands)
     if result.series:

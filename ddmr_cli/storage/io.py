@@ -82,9 +82,20 @@ def write_json(path: Path, data: Any) -> Path:
     return write_text(path, json.dumps(data, indent=2, default=_json_default, allow_nan=True) + "\n")
 
 
-def write_csv(path: Path, frame) -> Path:
-    """A pandas DataFrame, or a list or iterator of dicts with the same keys (written with the csv module, no
-    pandas; an iterator is streamed, so its rows never all sit in memory)."""
+def write_csv(path: Path, frame, columns: list[str] | None = None) -> Path:
+    """A pandas DataFrame, or a list or iterator of dicts with the same keys, or with ``columns`` the header and
+    ``frame`` an iterable of row sequences in that order (both written with the csv module, no pandas, floats as
+    ``repr``; an iterator is streamed, so its rows never all sit in memory)."""
+    if columns is not None:
+        import csv
+
+        def _write_rows(tmp: str) -> None:
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
+                writer = csv.writer(fh)
+                writer.writerow(columns)
+                writer.writerows(frame)
+
+        return atomic_write(path, _write_rows)
     if not hasattr(frame, "to_csv"):
         import csv
         import itertools
