@@ -133,3 +133,43 @@ def test_gain_sweep_end_to_end(tmp_path):
     summary = [line.split() for line in proc.stdout.splitlines() if re.match(r"\s+smc(_ndo)?\s+paper_1\s", line)]
     assert [(row[0], int(row[2])) for row in summary] == [("smc", 4), ("smc", 8), ("smc", 12), ("smc_ndo", 4),
                                                           ("smc_ndo", 8), ("smc_ndo", 12)]
+
+
+def _both_ways(sweep_dir: Path, name: str):
+    """The per-seed table as one parse of every job's rows makes it (None: refused) and as job-by-job reads do."""
+    state = sweep.read_state(sweep_dir)
+    keys, values = sweep.swept_values(sweep._job_overrides(state))
+    return (sweep._read_together(state, keys, values, name), sweep._read_each(state, keys, values, name))
+
+
+@pytest.mark.parametrize("name", [io.METRICS_CSV, io.SEGMENTS_CSV])
+def test_one_parse_of_every_job_is_the_table_of_job_by_job_reads(tmp_path, name):
+    """Keys of mixed types (an int and a float, a number unset in one job, a text, a bool, a list), jobs of one and
+    of three seeds: the same columns, types and values as reading the jobs one by one."""
+    sweep_dir = tmp_path / "sweep"
+    plan = []
+    for i, extra in enumerate([["controller.switching_gain=4", "controller.lam=2.5", "tags.fast=true"],
+                               ["controller.switching_gain=4.5", "tags.fast=false", "controller.ndo.gain=[1,2]"],
+                               ["controller.switching_gain=12", "controller.lam=3", "scenario=paper_2"]]):
+        overrides = ["controller=smc", *extra]
+        plan.append({"dir": _fake_job(sweep_dir, overrides, seeds=(0,) if i == 1 else (0, 1, 2), value=float(i)),
+                     "overrides": overrides})
+    io.write_json(sweep_dir / sweep.PLAN, {"jobs": plan})
+    together, each = _both_ways(sweep_dir, name)
+    assert together is not None
+    pd.testing.assert_frame_equal(together, each)
+    assert together["controller.lam"].isna().sum() == (1 if name == io.METRICS_CSV else 2)  # unset in one job
+
+
+def test_jobs_with_different_headers_or_a_row_over_two_lines_are_read_one_by_one(gain_sweep):
+    state = sweep.read_state(gain_sweep)
+    first, second = (d for d, _ in state.complete[:2])
+    assert _both_ways(gain_sweep, io.METRICS_CSV)[0] is not None
+    io.write_csv(first / io.METRICS_CSV, [{"controller": "smc", "scenario": "paper_1", "seed": 0, "status": "ok",
+                                          "deviation_mae": 1.0, "extra": 2.0}])
+    assert _both_ways(gain_sweep, io.METRICS_CSV)[0] is None  # its header differs
+    io.write_csv(first / io.METRICS_CSV, [{"controller": "smc", "scenario": "a\nb", "seed": 0, "status": "ok",
+                                          "deviation_mae": 1.0}])
+    assert _both_ways(gain_sweep, io.METRICS_CSV)[0] is None  # a quoted line break: rows are not lines
+    table = sweep.load_table(gain_sweep)  # and the table is still made, job by job
+    assert "a\nb" in set(table["scenario"]) and len(table) == 5

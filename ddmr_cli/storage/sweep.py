@@ -245,9 +245,27 @@ def _job_overrides(state: SweepState) -> dict[str, list[str]]:
 
 
 def _per_seed(state: SweepState, keys: list[str], values: dict[str, dict], segments: bool) -> "pd.DataFrame":
+    """Every complete job's per-seed rows (``metrics.csv``, or ``segments.csv``), its dir's name and the swept
+    values it lacks as columns, sorted by the swept values and then the seed.
+
+    Jobs whose files share one header are parsed as one text (:func:`_read_together`): one ``read_csv`` for the
+    sweep instead of one a job (200 one-seed jobs: 0.65 -> 0.06 s, their segments 0.78 -> 0.09 s, measured). Anything
+    else is read job by job (:func:`_read_each`); tests/test_sweep_columns.py holds the two to the same table."""
     import pandas as pd
 
     name = io.SEGMENTS_CSV if segments else io.METRICS_CSV
+    if not state.complete:
+        return pd.DataFrame(columns=["job", "controller", "scenario", *[k for k in keys if k not in _BASE_COLUMNS]])
+    table = _read_together(state, keys, values, name)
+    if table is None:
+        table = _read_each(state, keys, values, name)
+    return _sorted(table, keys, then=("seed",))
+
+
+def _read_each(state: SweepState, keys: list[str], values: dict[str, dict], name: str) -> "pd.DataFrame":
+    """The jobs' rows read job by job, each job's columns added to its own rows, then concatenated."""
+    import pandas as pd
+
     frames = []
     for job_dir, _ in state.complete:
         frame = pd.read_csv(job_dir / name)
@@ -256,10 +274,41 @@ def _per_seed(state: SweepState, keys: list[str], values: dict[str, dict], segme
         for i, key in enumerate(k for k in keys if k not in frame.columns):
             frame.insert(after + i, key, [_cell(values[job_dir.name][key])] * len(frame))
         frames.append(frame)
-    if not frames:
-        return pd.DataFrame(columns=["job", "controller", "scenario", *[k for k in keys if k not in _BASE_COLUMNS]])
-    table = pd.concat(frames, ignore_index=True)
-    return _sorted(table, keys, then=("seed",))
+    return pd.concat(frames, ignore_index=True)
+
+
+def _read_together(state: SweepState, keys: list[str], values: dict[str, dict], name: str) -> "pd.DataFrame | None":
+    """The table :func:`_read_each` makes, from one parse of every job's rows under their common header; None when
+    the headers differ or a row spans lines (a job's row count is its line count). The added columns are
+    concatenated from one constant column a job, as each job's own frame would hold them, so that their types
+    come out as in :func:`_read_each` (a number in one job and none in another stays as it was there)."""
+    import io as text_io
+
+    import pandas as pd
+
+    jobs, bodies, counts, header = [], [], [], None
+    for job_dir, _ in state.complete:
+        text = (job_dir / name).read_text(encoding="utf-8")
+        first, newline, body = text.partition("\n")
+        if header is None:
+            header = first
+        if first != header or not newline or (body and not body.endswith("\n")):
+            return None
+        jobs.append(job_dir.name)
+        bodies.append(body)
+        counts.append(body.count("\n"))
+    table = pd.read_csv(text_io.StringIO(header + "\n" + "".join(bodies)))
+    if len(table) != sum(counts):
+        return None
+
+    def per_job(cell) -> "pd.Series":
+        return pd.concat([pd.Series([cell(job)] * n) for job, n in zip(jobs, counts)], ignore_index=True)
+
+    table.insert(0, "job", per_job(lambda job: job))
+    after = table.columns.get_loc("scenario") + 1 if "scenario" in table.columns else 1
+    for i, key in enumerate(k for k in keys if k not in table.columns):
+        table.insert(after + i, key, per_job(lambda job, key=key: _cell(values[job][key])))
+    return table
 
 
 def load_table(path, segments: bool = False) -> "pd.DataFrame":
