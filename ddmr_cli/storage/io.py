@@ -111,8 +111,7 @@ def write_csv(path: Path, frame, columns: list[str] | None = None) -> Path:
                                      for row in itertools.chain([first], rows))
 
         return atomic_write(path, _write)
-    cells = _csv_cells(frame)
-    if cells is None:  # a column of a type the csv module would not write as pandas does
+    if not _csv_writes(frame):  # a column of a type the csv module would not write as pandas does
         return atomic_write(path, lambda tmp: frame.to_csv(tmp, index=False))
     import csv
 
@@ -120,18 +119,32 @@ def write_csv(path: Path, frame, columns: list[str] | None = None) -> Path:
         with open(tmp, "w", newline="", encoding="utf-8") as fh:
             writer = csv.writer(fh, lineterminator=os.linesep)  # pandas' to_csv: the csv module, os.linesep
             writer.writerow(frame.columns)
-            writer.writerows(zip(*cells))
+            for first in range(0, len(frame), CSV_BLOCK_ROWS):
+                writer.writerows(zip(*_csv_cells(frame.iloc[first:first + CSV_BLOCK_ROWS])))
 
     return atomic_write(path, _write_frame)
 
 
-def _csv_cells(frame) -> list[list] | None:
-    """The columns of a DataFrame as the values that ``frame.to_csv(index=False)`` hands the csv module, so that
-    the csv module writes the same text (tests/test_csv_frames.py: the same bytes), at about 0.6x its time (it
-    turns every float into text through numpy first): float64 numbers as floats (written by ``repr``, the text
-    numpy gives them) with NaN empty, integers and booleans as they are, text and other objects with every missing
-    value empty. None for a frame with a column of any other type (float32, dates, categories, nullable
-    integers), which pandas then writes."""
+#: rows of a DataFrame :func:`write_csv` turns into Python values at a time (a table's rows never all sit in memory
+#: twice)
+CSV_BLOCK_ROWS = 4096
+
+
+def _csv_writes(frame) -> bool:
+    """Whether every column of a DataFrame is of a type :func:`_csv_cells` hands the csv module as pandas does."""
+    import pandas as pd
+
+    return all((isinstance(t, np.dtype) and (t == np.float64 or t.kind in "iub")) or t == object
+               or isinstance(t, pd.StringDtype) for t in frame.dtypes)
+
+
+def _csv_cells(frame) -> list[list]:
+    """The columns of a DataFrame (of the types :func:`_csv_writes` accepts) as the values that
+    ``frame.to_csv(index=False)`` hands the csv module, so that the csv module writes the same text
+    (tests/test_csv_frames.py: the same bytes), at about 0.6x its time (pandas turns every float into text through
+    numpy first): float64 numbers as floats (written by ``repr``, the text numpy gives them) with NaN empty,
+    integers and booleans as they are, text and other objects with every missing value empty. Other types
+    (float32, dates, categories, nullable integers) are pandas' to write."""
     import pandas as pd
 
     out = []
@@ -141,11 +154,9 @@ def _csv_cells(frame) -> list[list] | None:
             out.append([v if v == v else "" for v in column.to_numpy().tolist()])
         elif isinstance(dtype, np.dtype) and dtype.kind in "iub":
             out.append(column.to_numpy().tolist())
-        elif dtype == object or isinstance(dtype, pd.StringDtype):
+        else:
             values = column.to_numpy(dtype=object)
             out.append(["" if missing else v for v, missing in zip(values.tolist(), pd.isna(values).tolist())])
-        else:
-            return None
     return out
 
 
