@@ -142,10 +142,13 @@ def _both_ways(sweep_dir: Path, name: str):
     return (sweep._read_together(state, keys, values, name), sweep._read_each(state, keys, values, name))
 
 
+@pytest.mark.parametrize("group_bytes", [1, 300, 2**20], ids=["a parse a job", "parses of two jobs", "one parse"])
 @pytest.mark.parametrize("name", [io.METRICS_CSV, io.SEGMENTS_CSV])
-def test_one_parse_of_every_job_is_the_table_of_job_by_job_reads(tmp_path, name):
+def test_one_parse_of_every_job_is_the_table_of_job_by_job_reads(tmp_path, monkeypatch, name, group_bytes):
     """Keys of mixed types (an int and a float, a number unset in one job, a text, a bool, a list), jobs of one and
-    of three seeds: the same columns, types and values as reading the jobs one by one."""
+    of three seeds, parsed in groups of jobs of every size: the same columns, types and values as reading the jobs
+    one by one."""
+    monkeypatch.setattr(sweep, "READ_TOGETHER_BYTES", group_bytes)
     sweep_dir = tmp_path / "sweep"
     plan = []
     for i, extra in enumerate([["controller.switching_gain=4", "controller.lam=2.5", "tags.fast=true"],
@@ -171,5 +174,10 @@ def test_jobs_with_different_headers_or_a_row_over_two_lines_are_read_one_by_one
     io.write_csv(first / io.METRICS_CSV, [{"controller": "smc", "scenario": "a\nb", "seed": 0, "status": "ok",
                                           "deviation_mae": 1.0}])
     assert _both_ways(gain_sweep, io.METRICS_CSV)[0] is None  # a quoted line break: rows are not lines
+    io.write_csv(second / io.METRICS_CSV, [{"controller": "smc", "scenario": "", "seed": 0, "status": "ok",
+                                           "deviation_mae": 1.0}])
+    io.write_csv(first / io.METRICS_CSV, [{"controller": "smc", "scenario": "paper_1", "seed": 0, "status": "ok",
+                                          "deviation_mae": 1.0}])
+    assert _both_ways(gain_sweep, io.METRICS_CSV)[0] is None  # an empty cell: typed within its job alone
     table = sweep.load_table(gain_sweep)  # and the table is still made, job by job
-    assert "a\nb" in set(table["scenario"]) and len(table) == 5
+    assert len(table) == 4 and set(table["deviation_mae"]) >= {1.0}

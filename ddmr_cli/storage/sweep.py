@@ -277,29 +277,46 @@ def _read_each(state: SweepState, keys: list[str], values: dict[str, dict], name
     return pd.concat(frames, ignore_index=True)
 
 
+#: the most text :func:`_read_together` parses at once: a sweep's rows are parsed in groups of jobs, so that its
+#: text and its table are not both held whole (table4's segments, 2.2 MB of text: three parses)
+READ_TOGETHER_BYTES = 2**20
+
+
 def _read_together(state: SweepState, keys: list[str], values: dict[str, dict], name: str) -> "pd.DataFrame | None":
-    """The table :func:`_read_each` makes, from one parse of every job's rows under their common header; None when
-    the headers differ or a row spans lines (a job's row count is its line count). The added columns are
-    concatenated from one constant column a job, as each job's own frame would hold them, so that their types
-    come out as in :func:`_read_each` (a number in one job and none in another stays as it was there)."""
+    """The table :func:`_read_each` makes, from one parse of many jobs' rows under their common header (groups of
+    about :data:`READ_TOGETHER_BYTES`); None when the headers differ, a row spans lines (a job's row count is its
+    line count) or a cell is empty (a job's missing values are then typed within that job alone; ddmr's own rows
+    write a missing number as ``nan``). The added columns are concatenated from one constant column a job, as each
+    job's own frame holds them, so that their types come out as in :func:`_read_each` (a number in one job and none
+    in another stays as it was there)."""
     import io as text_io
 
     import pandas as pd
 
-    jobs, bodies, counts, header = [], [], [], None
+    jobs, counts, frames, group, size, header = [], [], [], [], 0, None
+
+    def parse() -> bool:
+        table = pd.read_csv(text_io.StringIO(header + "\n" + "".join(group)))
+        frames.append(table)
+        return len(table) == sum(counts[len(counts) - len(group):])
+
     for job_dir, _ in state.complete:
         text = (job_dir / name).read_text(encoding="utf-8")
         first, newline, body = text.partition("\n")
-        if header is None:
-            header = first
-        if first != header or not newline or (body and not body.endswith("\n")):
+        header = first if header is None else header
+        if first != header or not newline or (body and not body.endswith("\n")) or _has_empty_cell(body):
             return None
         jobs.append(job_dir.name)
-        bodies.append(body)
         counts.append(body.count("\n"))
-    table = pd.read_csv(text_io.StringIO(header + "\n" + "".join(bodies)))
-    if len(table) != sum(counts):
+        group.append(body)
+        size += len(body)
+        if size >= READ_TOGETHER_BYTES:
+            if not parse():
+                return None
+            group, size = [], 0
+    if group and not parse():
         return None
+    table = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
 
     def per_job(cell) -> "pd.Series":
         return pd.concat([pd.Series([cell(job)] * n) for job, n in zip(jobs, counts)], ignore_index=True)
@@ -309,6 +326,11 @@ def _read_together(state: SweepState, keys: list[str], values: dict[str, dict], 
     for i, key in enumerate(k for k in keys if k not in table.columns):
         table.insert(after + i, key, per_job(lambda job, key=key: _cell(values[job][key])))
     return table
+
+
+def _has_empty_cell(body: str) -> bool:
+    """Whether CSV rows (each ending in a line break) hold an empty cell."""
+    return body.startswith(",") or any(pair in body for pair in (",,", ",\n", ",\r", "\n,"))
 
 
 def load_table(path, segments: bool = False) -> "pd.DataFrame":
