@@ -87,15 +87,7 @@ def write_csv(path: Path, frame, columns: list[str] | None = None) -> Path:
     ``frame`` an iterable of row sequences in that order (both written with the csv module, no pandas, floats as
     ``repr``; an iterator is streamed, so its rows never all sit in memory)."""
     if columns is not None:
-        import csv
-
-        def _write_rows(tmp: str) -> None:
-            with open(tmp, "w", newline="", encoding="utf-8") as fh:
-                writer = csv.writer(fh)
-                writer.writerow(columns)
-                writer.writerows(frame)
-
-        return atomic_write(path, _write_rows)
+        return _write_rows(path, columns, frame)
     if not hasattr(frame, "to_csv"):
         import csv
         import itertools
@@ -113,16 +105,22 @@ def write_csv(path: Path, frame, columns: list[str] | None = None) -> Path:
         return atomic_write(path, _write)
     if not _csv_writes(frame):  # a column of a type the csv module would not write as pandas does
         return atomic_write(path, lambda tmp: frame.to_csv(tmp, index=False))
+    rows = (row for first in range(0, len(frame), CSV_BLOCK_ROWS)
+            for row in zip(*_csv_cells(frame.iloc[first:first + CSV_BLOCK_ROWS])))
+    return _write_rows(path, frame.columns, rows, lineterminator=os.linesep)  # pandas' to_csv: os.linesep
+
+
+def _write_rows(path: Path, columns, rows, lineterminator: str = "\r\n") -> Path:
+    """The header ``columns`` and ``rows`` (sequences in that order, streamed) by the csv module, atomically."""
     import csv
 
-    def _write_frame(tmp: str) -> None:
+    def _write(tmp: str) -> None:
         with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            writer = csv.writer(fh, lineterminator=os.linesep)  # pandas' to_csv: the csv module, os.linesep
-            writer.writerow(frame.columns)
-            for first in range(0, len(frame), CSV_BLOCK_ROWS):
-                writer.writerows(zip(*_csv_cells(frame.iloc[first:first + CSV_BLOCK_ROWS])))
+            writer = csv.writer(fh, lineterminator=lineterminator)
+            writer.writerow(columns)
+            writer.writerows(rows)
 
-    return atomic_write(path, _write_frame)
+    return atomic_write(path, _write)
 
 
 #: rows of a DataFrame :func:`write_csv` turns into Python values at a time (a table's rows never all sit in memory
@@ -130,12 +128,22 @@ def write_csv(path: Path, frame, columns: list[str] | None = None) -> Path:
 CSV_BLOCK_ROWS = 4096
 
 
-def _csv_writes(frame) -> bool:
-    """Whether every column of a DataFrame is of a type :func:`_csv_cells` hands the csv module as pandas does."""
+def _csv_kind(dtype) -> str | None:
+    """How :func:`_csv_cells` hands a column of ``dtype`` to the csv module: ``"float"`` (float64: NaN empty),
+    ``"plain"`` (integers and booleans as they are), ``"object"`` (text and objects: missing values empty), or None
+    for a type pandas writes otherwise (float32, dates, categories, nullable integers)."""
     import pandas as pd
 
-    return all((isinstance(t, np.dtype) and (t == np.float64 or t.kind in "iub")) or t == object
-               or isinstance(t, pd.StringDtype) for t in frame.dtypes)
+    if isinstance(dtype, np.dtype) and dtype == np.float64:
+        return "float"
+    if isinstance(dtype, np.dtype) and dtype.kind in "iub":
+        return "plain"
+    return "object" if dtype == object or isinstance(dtype, pd.StringDtype) else None
+
+
+def _csv_writes(frame) -> bool:
+    """Whether every column of a DataFrame is of a type :func:`_csv_cells` hands the csv module as pandas does."""
+    return all(_csv_kind(t) is not None for t in frame.dtypes)
 
 
 def _csv_cells(frame) -> list[list]:
@@ -149,10 +157,10 @@ def _csv_cells(frame) -> list[list]:
 
     out = []
     for _, column in frame.items():
-        dtype = column.dtype
-        if isinstance(dtype, np.dtype) and dtype == np.float64:
+        kind = _csv_kind(column.dtype)
+        if kind == "float":
             out.append([v if v == v else "" for v in column.to_numpy().tolist()])
-        elif isinstance(dtype, np.dtype) and dtype.kind in "iub":
+        elif kind == "plain":
             out.append(column.to_numpy().tolist())
         else:
             values = column.to_numpy(dtype=object)

@@ -316,7 +316,7 @@ def _read_together(state: SweepState, keys: list[str], values: dict[str, dict], 
             group, size = [], 0
     if group and not parse():
         return None
-    table = pd.concat(frames, ignore_index=True) if len(frames) > 1 else frames[0]
+    table = pd.concat(frames, ignore_index=True)
 
     def per_job(cell) -> "pd.Series":
         return pd.concat([pd.Series([cell(job)] * n) for job, n in zip(jobs, counts)], ignore_index=True)
