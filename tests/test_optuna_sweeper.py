@@ -249,3 +249,88 @@ def test_stored_trials_refuse_a_study_another_process_writes_into(tmp_path):
     trial.suggest_float("x", 0.0, 1.0)
     with pytest.raises(RuntimeError, match="another process"):
         stored.launched([trial])
+
+
+def _sweeper(launch):
+    from types import SimpleNamespace
+
+    from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import DdmrOptunaSweeper
+
+    sweeper = DdmrOptunaSweeper(sampler=None, direction="minimize", storage=None, study_name=None, n_trials=4,
+                                n_jobs=2)
+    sweeper.launcher = SimpleNamespace(launch=launch)
+    return sweeper
+
+
+def test_the_form_of_a_trials_overrides_keeps_names_number_types_and_texts():
+    from hydra_plugins.ddmr_optuna_sweeper.optuna_sweeper import override_form
+
+    one = override_form({"x": 0.1, "n": 3, "c": "a", "flag": True})
+    assert one == override_form({"x": -7e-5, "n": 9, "c": "a", "flag": True})  # other numbers: the same form
+    for other in ({"x": 0.1, "n": 3.0, "c": "a", "flag": True}, {"x": 0.1, "n": 3, "c": "b", "flag": True},
+                  {"x": 0.1, "n": 3, "c": "a", "flag": False}, {"x": 0.1, "n": 3, "c": "a"},
+                  {"y": 0.1, "n": 3, "c": "a", "flag": True}):
+        assert override_form(other) != one, other
+
+
+def test_a_batch_composes_only_the_trials_of_a_form_not_composed_before(monkeypatch):
+    """Hydra's validate_batch_is_legal gets the first trial of each new form: a later batch of the same forms
+    composes nothing, a new text (a config group's option) composes that trial alone."""
+    from types import SimpleNamespace
+
+    sweeper, composed = _sweeper(None), []
+    monkeypatch.setattr(sweeper, "validate_batch_is_legal", lambda batch: composed.append(batch))
+    validated = set()
+
+    def batch(*params):
+        trials = [SimpleNamespace(params=p) for p in params]
+        sweeper._validate(trials, [[f"{k}={v}" for k, v in p.items()] for p in params], validated)
+
+    batch({"x": 0.1, "c": "a"}, {"x": 0.5, "c": "a"})
+    assert composed == [[["x=0.1", "c=a"]]]
+    batch({"x": 0.9, "c": "a"}, {"x": 0.2, "c": "a"})
+    assert len(composed) == 1
+    batch({"x": 0.3, "c": "a"}, {"x": 0.4, "c": "b"})
+    assert composed[1:] == [[["x=0.4", "c=b"]]]
+
+
+def test_a_batchs_running_records_are_written_while_it_launches_and_complete_before_it_is_told():
+    """StoredTrials.launched runs in the recorder's thread during the launch; _launch returns (or raises) only
+    once the records are written, and a recording error (another process writing into the study) is raised after
+    the batch, as is the launcher's own error, which wins."""
+    import threading
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+    from types import SimpleNamespace
+
+    events = []
+
+    def launched(trials, fail=False):
+        events.append(("recording", threading.current_thread() is threading.main_thread()))
+        time.sleep(0.2)
+        events.append("recorded")
+        if fail:
+            raise RuntimeError("another process is writing into the same study")
+
+    def launch(overrides, initial_job_idx):
+        events.append("launched")
+        return ["returns"]
+
+    trials = [SimpleNamespace(number=0)]
+    with ThreadPoolExecutor(1) as recorder:
+        sweeper = _sweeper(launch)
+        assert sweeper._launch(trials, [["x=1"]], SimpleNamespace(launched=launched), recorder) == ["returns"]
+        assert events[-1] == "recorded" and ("recording", False) in events and "launched" in events
+        events.clear()
+        with pytest.raises(RuntimeError, match="another process"):
+            sweeper._launch(trials, [["x=1"]], SimpleNamespace(launched=lambda t: launched(t, fail=True)), recorder)
+        assert events[-1] == "recorded" and "launched" in events
+        events.clear()
+
+        def interrupted(overrides, initial_job_idx):
+            raise KeyboardInterrupt
+
+        with pytest.raises(KeyboardInterrupt):
+            _sweeper(interrupted)._launch(trials, [["x=1"]], SimpleNamespace(launched=launched), recorder)
+        assert events[-1] == "recorded"
+        assert _sweeper(launch)._launch(trials, [["x=1"]], None, None) == ["returns"]  # no storage: no recorder
