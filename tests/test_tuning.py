@@ -204,6 +204,14 @@ def test_a_killed_study_resumes_and_the_trial_count_continues(tmp_path):
     stored = optuna.load_study(study_name=info["study_name"], storage=TU.storage_url(study))
     stored.ask()
     command = ["run", "-m", "+tune=pid", *TINY, "tuning.n_trials=4", f"hydra.sweep.dir={study}"]
+    # while another session holds the dir (its trial RUNNING), the command is refused and changes nothing
+    from ddmr_cli.storage.jobdir import DirLock
+
+    with DirLock(study, kind="sweep"):
+        busy = run_ddmr(command, cwd=tmp_path)
+    assert busy.returncode == 1 and "in use by pid" in busy.stderr and "resuming" not in busy.stdout + busy.stderr
+    again_stored = optuna.load_study(study_name=info["study_name"], storage=TU.storage_url(study))
+    assert [t.state.name for t in again_stored.trials] == ["COMPLETE", "COMPLETE", "RUNNING"]
     proc = run_ddmr(command, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "resuming study pid-deviation: 2/4 trials done (1 left running by a killed session marked failed)" \
@@ -299,3 +307,29 @@ def test_a_study_killed_by_sigkill_mid_study_resumes_without_losing_or_repeating
         record = json.loads((out / row["dir"] / TU.TRIAL_FILE).read_text())
         assert math.isclose(record["values"][0], row["value_0"], rel_tol=1e-12)
     assert math.isclose(study.best_value, min(t.values[0] for t in complete), rel_tol=1e-12)
+
+
+def test_a_session_is_planned_read_only_and_started_under_the_lock(tmp_path):
+    """plan_session writes nothing (a RUNNING trial stays RUNNING); Session.start marks it failed, and refuses a
+    study whose complete trials changed between planning and the lock."""
+    import optuna
+
+    from ddmr_cli.storage.jobdir import FaultError
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.create_study(study_name="s", storage=TU.storage_url(tmp_path))
+    study.tell(study.ask(), 1.0)
+    study.ask()  # left RUNNING by a killed session
+    session = TU.plan_session(tmp_path, "s", budget=5, seed=10)
+    assert session.overrides == ["hydra.sweeper.n_trials=4", "hydra.sweeper.sampler.seed=11"]
+    assert [t.state.name for t in study.get_trials()] == ["COMPLETE", "RUNNING"]
+    session.start()
+    assert [t.state.name for t in optuna.load_study(study_name="s", storage=TU.storage_url(tmp_path)).trials] \
+        == ["COMPLETE", "FAIL"]
+    planned = TU.plan_session(tmp_path, "s", budget=5, seed=10)
+    study.tell(study.ask(), 2.0)  # another session completed a trial meanwhile
+    with pytest.raises(FaultError, match="changed while this session was planned"):
+        planned.start()
+    fresh = TU.plan_session(tmp_path / "none", "s", budget=3, seed=0)
+    assert fresh.overrides == ["hydra.sweeper.n_trials=3", "hydra.sweeper.sampler.seed=0"]
+    fresh.start()  # no storage yet: nothing to do

@@ -246,7 +246,12 @@ class TuningStudy(Mode):
     def plan(self, base, overrides, parsed, compose):
         from ddmr_cli.study import tuning
 
-        return Plan([], tuning.prepare_study(base, overrides))
+        self.session = tuning.prepare_study(base, overrides)  # read only: the lock is not held yet
+        return Plan([], self.session.overrides)
+
+    def before_launch(self, out_dir, jobs):
+        super().before_launch(out_dir, jobs)
+        self.session.start()  # under the lock: killed trials marked failed
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.study import tuning
@@ -260,7 +265,12 @@ class CalibrationSearch(Mode):
     def plan(self, base, overrides, parsed, compose):
         from ddmr_cli.study import search
 
-        return Plan([], search.prepare_search(base))
+        self.session = search.prepare_search(base)  # read only: the lock is not held yet
+        return Plan([], self.session.overrides)
+
+    def before_launch(self, out_dir, jobs):
+        super().before_launch(out_dir, jobs)
+        self.session.start()  # under the lock: killed trials marked failed
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.study import search

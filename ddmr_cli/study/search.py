@@ -11,7 +11,7 @@ returns :func:`objective` of its row to the sweeper. Nothing here loops over tri
 
 Before Hydra starts, :func:`prepare_search` checks the settings (one-line ConfigError, exit 2), refuses a sweep
 dir holding a search of another config, and plans the session (the rest of the budget, the sampler seeded
-``seed + trials done``: :func:`ddmr_cli.study.tuning.session_overrides`). When a search starts from scratch,
+``seed + trials done``: :class:`ddmr_cli.study.tuning.Session`). When a search starts from scratch,
 :func:`warm_start` enqueues the ``study.calibration.warm_start`` best readings of a Latin-hypercube stage's
 ``study.csv`` (``study.calibration.warm_start_from``; ``ddmr sensitivity`` passes its ``lhs`` stage's), so the
 search begins where the uniform sample ended and the two are compared on the same seeds.
@@ -36,6 +36,8 @@ from ddmr_cli.study.stages import STAGES
 
 if TYPE_CHECKING:
     import pandas as pd
+
+    from ddmr_cli.study.tuning import Session
 
 STAGE = "calibration"
 #: a trial's sampled value of parameter p is the Hydra override ``+study.reading.<p>=value``
@@ -156,12 +158,12 @@ def check_search(cfg: DictConfig) -> None:
     reading_of(cfg.study, Box.from_config(cfg.study))
 
 
-def prepare_search(cfg: DictConfig) -> list[str]:
-    """Check a search before Hydra starts and plan this session: the overrides running the rest of the budget
-    with the sampler seeded ``study.calibration.seed + trials done`` (:func:`ddmr_cli.study.tuning.session_overrides`).
+def prepare_search(cfg: DictConfig) -> "Session":
+    """Check a search before Hydra starts and plan this session (:class:`ddmr_cli.study.tuning.Session`: its
+    overrides run the rest of the budget with the sampler seeded ``study.calibration.seed + trials done``).
     Raises ConfigError on a bad setting, or when the sweep dir holds a search of another config."""
     from ddmr_cli.config import validate_config
-    from ddmr_cli.study.tuning import session_overrides
+    from ddmr_cli.study.tuning import plan_session
     from ddmr_cli.errors import ConfigError
     from ddmr_cli.study.setup import study_setup
 
@@ -175,7 +177,7 @@ def prepare_search(cfg: DictConfig) -> list[str]:
         raise ConfigError("hydra.sweep.dir", str(sweep_dir), f"holds a calibration search of another config (hash "
                           f"{info.get('hash')}, this one {digest}); choose another dir or remove it")
     c = cfg.study.calibration
-    return session_overrides(sweep_dir, str(cfg.hydra.sweeper.study_name), int(c.trials), int(c.seed))
+    return plan_session(sweep_dir, str(cfg.hydra.sweeper.study_name), int(c.trials), int(c.seed))
 
 
 # --- the session ----------------------------------------------------------------------------------------------

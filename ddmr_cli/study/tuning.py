@@ -343,9 +343,9 @@ def trials_done(study) -> int:
     return sum(1 for t in study.get_trials(deepcopy=False) if t.state == TrialState.COMPLETE)
 
 
-def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
-    """Check a study before Hydra starts and plan this session: the Hydra overrides that run the rest of the
-    budget (``hydra.sweeper.n_trials``) with the sampler seeded ``tuning.seed + trials done``.
+def prepare_study(cfg: DictConfig, overrides=()) -> Session:
+    """Check a study before Hydra starts and plan this session (:class:`Session`: its overrides run the rest of
+    the budget, ``hydra.sweeper.n_trials``, with the sampler seeded ``tuning.seed + trials done``).
 
     ``overrides``: the command line's (its sweep overrides extend the search space).
     Raises ConfigError on a bad setting, or when the sweep dir holds a study of another config."""
@@ -357,35 +357,63 @@ def prepare_study(cfg: DictConfig, overrides=()) -> list[str]:
     if info is not None and info.get("hash") != digest:
         raise ConfigError("hydra.sweep.dir", str(sweep_dir), f"holds a study of another config (hash {info.get('hash')}"
                           f", this one {digest}); choose another hydra.sweep.dir or remove it")
-    return session_overrides(sweep_dir, str(cfg.hydra.sweeper.study_name), budget, seed)
+    return plan_session(sweep_dir, str(cfg.hydra.sweeper.study_name), budget, seed)
 
 
 class StorageError(OSError):
     """The study's storage file exists but cannot be read as an Optuna study database (a fault: exit 1)."""
 
 
-def session_overrides(sweep_dir: Path, study_name: str, budget: int, seed: int) -> list[str]:
-    """The Hydra overrides of a session of the Optuna study ``study_name`` stored in ``sweep_dir`` (none yet, or
-    resumed): trials a killed session left RUNNING marked failed, then the rest of the budget
-    (``hydra.sweeper.n_trials``) with the sampler seeded ``seed + trials done`` (docs/model.md §9, "Storage and
-    resumption"). Shared by the gain tuning and the sensitivity study's calibration search (§11)."""
-    done = 0
-    if (Path(sweep_dir) / STORAGE_FILE).is_file():
-        try:
-            study = load_study(sweep_dir, study_name)
-        except KeyError:  # a storage without this study
-            study = None
-        except Exception as exc:  # SQLAlchemy/Optuna errors of a file that is not a readable study database
-            raise StorageError(f"{Path(sweep_dir) / STORAGE_FILE}: not a readable Optuna study database "
-                               f"({type(exc).__name__}); nothing was changed; move it away to start afresh") from None
-        if study is not None:
-            killed = close_killed_trials(study)
-            done = trials_done(study)
-            print(f"ddmr: resuming study {study.study_name}: {done}/{budget} trials done"
-                  + (f" ({killed} left running by a killed session marked failed)" if killed else ""),
-                  flush=True)
-    remaining = max(0, budget - done)
-    return [f"hydra.sweeper.n_trials={remaining}", f"hydra.sweeper.sampler.seed={seed + done}"]
+@dataclass(frozen=True)
+class Session:
+    """A session of the Optuna study ``study_name`` stored in ``sweep_dir`` (none yet, or resumed), as planned
+    before the sweep dir's lock is taken: read from the storage, nothing written (a second ``ddmr run`` on a dir in
+    use is refused by the lock and must leave the running session's trials as they are). Shared by the gain tuning
+    and the sensitivity study's calibration search (docs/model.md §9, "Storage and resumption"; §11)."""
+
+    sweep_dir: Path
+    study_name: str
+    budget: int
+    seed: int
+    done: int = 0      # trials complete (:func:`trials_done`)
+    stored: bool = False  # the storage holds the study
+
+    @property
+    def overrides(self) -> list[str]:
+        """The Hydra overrides of the session: the rest of the budget (``hydra.sweeper.n_trials``) with the sampler
+        seeded ``seed + trials done``."""
+        return [f"hydra.sweeper.n_trials={max(0, self.budget - self.done)}",
+                f"hydra.sweeper.sampler.seed={self.seed + self.done}"]
+
+    def start(self) -> None:
+        """Under the sweep dir's lock, just before Hydra starts: the trials a killed session left RUNNING marked
+        failed, and the resumption said. A study whose trials changed since planning (a session that ended in
+        between) is refused (exit 1: run the command again)."""
+        if not self.stored:
+            return
+        study = load_study(self.sweep_dir, self.study_name)
+        if trials_done(study) != self.done:
+            from ddmr_cli.storage.jobdir import FaultError
+
+            raise FaultError(Path(self.sweep_dir) / STORAGE_FILE, f"the study's trials changed while this session was "
+                             f"planned ({self.done} complete, now {trials_done(study)}); run the command again")
+        killed = close_killed_trials(study)
+        print(f"ddmr: resuming study {study.study_name}: {self.done}/{self.budget} trials done"
+              + (f" ({killed} left running by a killed session marked failed)" if killed else ""), flush=True)
+
+
+def plan_session(sweep_dir: Path, study_name: str, budget: int, seed: int) -> Session:
+    """The :class:`Session` of the study ``study_name`` in ``sweep_dir`` (read only: see :class:`Session`)."""
+    if not (Path(sweep_dir) / STORAGE_FILE).is_file():
+        return Session(Path(sweep_dir), study_name, budget, seed)
+    try:
+        study = load_study(sweep_dir, study_name)
+    except KeyError:  # a storage without this study
+        return Session(Path(sweep_dir), study_name, budget, seed)
+    except Exception as exc:  # SQLAlchemy/Optuna errors of a file that is not a readable study database
+        raise StorageError(f"{Path(sweep_dir) / STORAGE_FILE}: not a readable Optuna study database "
+                           f"({type(exc).__name__}); nothing was changed; move it away to start afresh") from None
+    return Session(Path(sweep_dir), study_name, budget, seed, trials_done(study), stored=True)
 
 
 # --- the study's files ----------------------------------------------------------------------------------------
@@ -513,7 +541,7 @@ def finish(sweep_dir: Path) -> int:
 
 
 __all__ = ["OBJECTIVE_METRIC", "TrialOutcome", "evaluate_gains", "run_trial", "search_space", "check_study",
-           "prepare_study", "session_overrides", "study_hash", "load_study", "trials_table", "write_tables", "start_session", "end_session", "finish",
+           "prepare_study", "Session", "plan_session", "study_hash", "load_study", "trials_table", "write_tables", "start_session", "end_session", "finish",
            "is_study", "scenario_config"]
 
 
