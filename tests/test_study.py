@@ -299,6 +299,16 @@ def test_quick_study_end_to_end(tmp_path):
     assert "ddmr's Optuna sweeper" in report and "**Conclusion: Table 4 is" in report
     for png in ("oat", "morris", "sobol", "nn_map", "calibration"):
         assert (out / "figures" / f"{png}.png").stat().st_size > 1000, png
+    # while another `ddmr sensitivity` holds the study, a second is refused and writes nothing
+    from ddmr_cli.cli.sensitivity import STUDY_LOCK, SUMMARY
+    from ddmr_cli.storage.jobdir import DirLock
+
+    summary = (out / SUMMARY).read_bytes()
+    with DirLock(out, name=STUDY_LOCK):
+        busy = run_ddmr(["sensitivity", "--out", str(out), "--stages", "oat", "study=quick", "launcher=basic"],
+                        cwd=tmp_path)
+    assert busy.returncode == 1 and "in use by pid" in busy.stderr, busy.stderr[-2000:]
+    assert (out / SUMMARY).read_bytes() == summary
     # resume: the same command again skips every job (complete, same config) and rewrites the report
     again = run_ddmr(["sensitivity", "--out", str(out), "--stages", "morris", "study=quick", "launcher=basic"],
                      cwd=tmp_path)
@@ -317,3 +327,29 @@ def test_quick_study_end_to_end(tmp_path):
                     cwd=tmp_path)
     assert proc.returncode == 0 and "resuming study calibration: 4/5 trials done" in proc.stdout + proc.stderr
     assert list(pd.read_csv(other / "study.csv")["sample"]) == [0, 1, 2, 3, 4]
+
+
+def test_ctrl_c_in_a_stage_stops_the_study_and_another_study_on_the_dir_is_refused(tmp_path, monkeypatch, capsys):
+    """A stage interrupted (its `ddmr run` returns 130) ends the study with 130 and runs no later stage or report;
+    the summary records the stage. A second study on a dir whose lock is held exits 1 and starts no stage."""
+    from ddmr_cli.cli import run as run_module
+    from ddmr_cli.cli import sensitivity
+    from ddmr_cli.storage.jobdir import DirLock
+
+    started = []
+
+    def fake_run(argv):
+        started.append(next(a for a in argv if a.startswith("+experiment=")))
+        return 130 if len(started) == 2 else 0
+
+    monkeypatch.setattr(run_module, "cmd_run", fake_run)
+    monkeypatch.setattr("ddmr_cli.report.sensitivity.write_report", lambda out: pytest.fail("no report"))
+    out = tmp_path / "study"
+    assert sensitivity.main(["--out", str(out), "--stages", "oat,morris,sobol"]) == 130
+    assert started == ["+experiment=sensitivity_oat", "+experiment=sensitivity_morris"]
+    assert "study interrupted in stage morris" in capsys.readouterr().err
+    assert json.loads((out / sensitivity.SUMMARY).read_text())["stages"]["morris"]["exit"] == 130
+    started.clear()
+    with DirLock(out, name=sensitivity.STUDY_LOCK):
+        assert sensitivity.main(["--out", str(out), "--stages", "oat"]) == 1
+    assert started == [] and "in use by pid" in capsys.readouterr().err

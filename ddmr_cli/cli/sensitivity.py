@@ -18,9 +18,13 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+from ddmr_cli.cli.usage import EXIT_FAILED, INTERRUPTED
 from ddmr_cli.study.stages import STAGES
 
 SUMMARY = "study_summary.json"
+#: the study dir's own lock: one `ddmr sensitivity` at a time writes a study (its summary, its stages in turn, its
+#: report); each stage's sweep also holds its stage dir's lock (``.ddmr.lock``), a file of another name
+STUDY_LOCK = ".ddmr-study.lock"
 
 
 def top_parameters(morris_csv: Path, k: int) -> list[str]:
@@ -53,7 +57,6 @@ def stage_extra(stage: str, out: Path, overrides: list[str]) -> list[str]:
 
 
 def main(argv: Sequence[str]) -> int:
-    from ddmr_cli.cli.run import cmd_run
     from ddmr_cli.cli.usage import fail
 
     parser = argparse.ArgumentParser(
@@ -72,6 +75,20 @@ def main(argv: Sequence[str]) -> int:
     if bad:
         return fail(f"--stages={args.stages}: unknown stage {bad[0]!r}; available: {', '.join(STAGES)}")
     out = Path(args.out or f"outputs/sensitivity/{time.strftime('%Y-%m-%d_%H-%M-%S')}")
+    from ddmr_cli.storage.jobdir import DirLock, FaultError
+
+    try:
+        with DirLock(out, name=STUDY_LOCK):
+            return _study(out, stages, args)
+    except FaultError as exc:  # another `ddmr sensitivity` on OUT, or OUT cannot be made
+        print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
+        return EXIT_FAILED
+
+
+def _study(out: Path, stages: list[str], args) -> int:
+    """The stages and the report of the study in ``out``, holding its lock."""
+    from ddmr_cli.cli.run import cmd_run
+
     summary_path = out / SUMMARY
     record = json.loads(summary_path.read_text()) if summary_path.is_file() else {"stages": {}}
     status = 0
@@ -85,6 +102,10 @@ def main(argv: Sequence[str]) -> int:
                                        "overrides": [*args.overrides, *extra], **_counts(out / stage)}
             out.mkdir(parents=True, exist_ok=True)
             summary_path.write_text(json.dumps(record, indent=2))
+            if code == INTERRUPTED:  # Ctrl-C stops the study; the same command resumes it
+                print(f"ddmr: study interrupted in stage {stage}; run the same command again to resume",
+                      file=sys.stderr)
+                return INTERRUPTED
             if code:
                 print(f"ddmr: stage {stage} failed (exit {code}); later stages still run", file=sys.stderr)
                 status = code
