@@ -169,6 +169,43 @@ def test_one_writer_per_dir_and_the_lock_goes_with_its_holder(tmp_path):
         pass
 
 
+def test_a_running_holder_is_another_live_process_that_recorded_itself(tmp_path):
+    """running_holder reads the lock record only: another live process (a child started before the record) is
+    running; this process, an ended one, a reused pid (the process started after the record) and no record are
+    not; a holder on another host is taken at its word."""
+    import json
+    import subprocess
+    import sys
+    import time
+
+    d = tmp_path / "d"
+    d.mkdir()
+    assert jobdir.running_holder(d) is None  # no record
+
+    def record(pid, started, host=None):
+        (d / jobdir.LOCK).write_text(json.dumps({"pid": pid, "host": host or socket.gethostname(), "command": "ddmr",
+                                                 "started": time.strftime("%Y-%m-%d %H:%M:%S",
+                                                                          time.localtime(started))}))
+
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        time.sleep(0.2)
+        record(child.pid, time.time() + 1)
+        assert jobdir.running_holder(d)["pid"] == child.pid
+        assert "pid %d on" % child.pid in jobdir.describe_holder(jobdir.running_holder(d))
+        record(child.pid, time.time() - 3600)  # a record older than the process with that pid: a reused pid
+        assert jobdir.running_holder(d) is None
+        record(os.getpid(), time.time())
+        assert jobdir.running_holder(d) is None  # this process (a report written by the sweep itself)
+        record(child.pid, time.time() + 1, host="elsewhere.invalid")
+        assert jobdir.running_holder(d)["host"] == "elsewhere.invalid"
+    finally:
+        child.kill()
+        child.wait()
+    record(child.pid, time.time())
+    assert jobdir.running_holder(d) is None  # ended
+
+
 @pytest.mark.parametrize("make,reason", [
     (lambda p: p.write_text("file"), "a file is in the way"),
     (lambda p: None, "File name too long"),

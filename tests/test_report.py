@@ -323,6 +323,7 @@ def test_partial_sweep(mini_sweep, tmp_path):
     assert jobs.loc["controller=smc_ndo,scenario=paper_2", "status"] == "missing"
     assert (jobs["status"] == "complete").sum() == 8
     assert len(_read(out / "tables" / "table4.csv")) == 8
+    assert "still running" not in md and "not run, or killed" in missing
     # verdicts needing a missing controller are skipped with a note, the others still computed
     assert "no complete smc job in paper_1" in md and "no complete smc_ndo job in paper_2" in md
     v = _read(out / "tables" / "verdicts.csv")
@@ -335,6 +336,35 @@ def test_partial_sweep(mini_sweep, tmp_path):
     assert "time-series figures skipped" in md
     _links_resolve(out, md)
     assert not (sweep / "report").exists()  # --out elsewhere: nothing written into the sweep
+
+
+def test_a_report_of_a_sweep_still_running_says_so(mini_sweep, tmp_path):
+    """While another live ddmr process holds the sweep dir's lock, the report says it was written while the sweep
+    was still running and that the missing jobs may not have run yet."""
+    import json
+    import subprocess
+    import sys
+    import time
+
+    from ddmr_cli.report import build_report
+    from ddmr_cli.storage.jobdir import LOCK
+
+    sweep = tmp_path / "running"
+    shutil.copytree(mini_sweep, sweep, ignore=shutil.ignore_patterns("report", "series.npz", "bands.npz"))
+    shutil.rmtree(sweep / "controller=smc_ndo,scenario=paper_2")  # not run yet
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        time.sleep(0.2)
+        (sweep / LOCK).write_text(json.dumps({"pid": child.pid, "host": __import__("socket").gethostname(),
+                                              "command": "ddmr run -m", "started": time.strftime("%Y-%m-%d %H:%M:%S")}))
+        md = _md(build_report(sweep, tmp_path / "out", figures=False, progress=False))
+    finally:
+        child.kill()
+        child.wait()
+    assert f"**Written while the sweep was still running** (pid {child.pid} on" in md
+    assert "not finished yet: the sweep is still running" in _section(md, "Missing or failed jobs")
+    md = _md(build_report(sweep, tmp_path / "after", figures=False, progress=False))  # the holder has ended
+    assert "still running" not in md
 
 
 def test_failed_job_is_listed(mini_sweep, tmp_path):

@@ -19,6 +19,10 @@ def write_report(path: Path, out: str | None, margin: float | None, failure: int
     from ddmr_cli.report import build_report
     from ddmr_cli.report.build import staged
 
+    running = jobdir.running_holder(Path(path).expanduser())
+    if running is not None:  # the report covers the jobs complete so far (it says so too)
+        print(f"ddmr: warning: {path} is still being written by {jobdir.describe_holder(running)}; the report "
+              f"covers the jobs complete so far", file=sys.stderr)
     try:
         from ddmr_cli.report import tuning
 

@@ -98,6 +98,12 @@ class Report:
                  f"{len(d.failed)} failed, {len(d.missing)} missing. Paper: *SMC integrated with NDO and RBF "
                  f"neural network for trajectory tracking of DDMRs considering terrain factor*; its numbers are "
                  f"shipped in `ddmr_cli/data/paper_numbers.json` (docs/model.md §8).", "")
+        if d.running is not None:
+            from ddmr_cli.storage.jobdir import describe_holder
+
+            self.add(f"**Written while the {kind.split()[0]} was still running** ({describe_holder(d.running)}): "
+                     f"its missing jobs may not have run yet. Run `ddmr report {d.path}` again when it has "
+                     f"finished.", "")
 
     def configuration(self) -> None:
         d = self.data
@@ -151,8 +157,9 @@ class Report:
                   "scenario": s.get("scenario"), "overrides": " ".join(map(str, s.get("overrides") or [])),
                   "error": s.get("error", "")} for p, s in d.failed]
         rows += [{"job": m["dir"], "status": "missing", "controller": "", "scenario": "",
-                  "overrides": " ".join(map(str, m.get("overrides") or [])), "error": "no summary.json (not run, "
-                  "or killed before it finished)"} for m in d.missing]
+                  "overrides": " ".join(map(str, m.get("overrides") or [])),
+                  "error": "no summary.json (not finished yet: the sweep is still running)" if d.running is not None
+                  else "no summary.json (not run, or killed before it finished)"} for m in d.missing]
         link = self.csv("jobs.csv", pd.DataFrame(rows), "every job and its status")
         self.add("## Missing or failed jobs", "")
         if not d.failed and not d.missing:

@@ -137,6 +137,9 @@ class ReportData:
     segments: "pd.DataFrame"
     multirun: dict | None = None
     plan: list[dict] | None = None
+    #: the lock record of the ddmr process still writing the dir when the report was made (a sweep in progress:
+    #: its missing jobs may still come), else None (:func:`ddmr_cli.storage.jobdir.running_holder`)
+    running: dict | None = None
     _series: dict = field(default_factory=dict, repr=False)
     _bands: dict = field(default_factory=dict, repr=False)
     _ok: dict = field(default_factory=dict, repr=False)
@@ -324,9 +327,12 @@ def load(path) -> ReportData:
 
     from ddmr_cli.storage.sweep import PLAN, load_sweep
 
+    from ddmr_cli.storage.jobdir import running_holder
+
     path = Path(path).expanduser().resolve()
     if not path.is_dir():
         raise DDMRError(f"{path}: no such directory (expected a sweep dir from `ddmr run -m` or a run dir)")
+    running = running_holder(path)  # read before the jobs: a sweep that ends meanwhile is reported as running
     single = io.read_summary(path) is not None
     state = load_sweep(path)
     if not (state.complete or state.failed or state.missing):
@@ -363,4 +369,4 @@ def load(path) -> ReportData:
         except (OSError, ValueError):
             plan = None
     return ReportData(path, single, jobs, list(state.failed), list(state.missing), metrics, segments,
-                      multirun, plan)
+                      multirun, plan, running)

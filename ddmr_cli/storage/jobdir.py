@@ -390,6 +390,37 @@ def _describe(holder: dict | None) -> str:
             f"({holder.get('command')})")
 
 
+def running_holder(directory: Path) -> dict | None:
+    """The record of the other process that holds ``directory``'s lock, while it still runs; None when the dir has
+    no lock record, its holder has ended, or is this process. Reads the record only: the lock itself is never
+    probed, so a reader (``ddmr report`` of a sweep in progress) can never make a run starting at that instant
+    see its dir in use. A holder pid that a later process reused is told apart by its start time (psutil)."""
+    holder = read_holder(directory)
+    if not holder or not isinstance(holder.get("pid"), int):
+        return None
+    pid, host = holder["pid"], holder.get("host")
+    if host not in (None, socket.gethostname()):
+        return holder  # another host, on a shared file system: taken at its word
+    if pid == os.getpid() or not _alive(pid, host):
+        return None
+    try:
+        import psutil
+
+        started = time.mktime(time.strptime(str(holder.get("started")), "%Y-%m-%d %H:%M:%S"))
+        if psutil.Process(pid).create_time() > started + 1.0:  # the pid now names a process started later
+            return None
+    except (ValueError, OverflowError, ImportError):
+        pass  # no usable start time: the live pid is taken at its word
+    except Exception:  # noqa: BLE001 - psutil.NoSuchProcess (it ended meanwhile), AccessDenied
+        return None if not _alive(pid, host) else holder
+    return holder
+
+
+def describe_holder(holder: dict | None) -> str:
+    """``pid N on HOST since TIME (COMMAND)``: a lock holder as the CLI names it."""
+    return _describe(holder)
+
+
 #: what marks a dir as a sweep's (its plan) and as a single run's (its summary at the top)
 _SWEEP_MARKS = ("sweep_plan.json", "multirun.yaml")
 
@@ -532,5 +563,6 @@ def read_holder(directory: Path, name: str = LOCK) -> dict | None:
 
 
 __all__ = ["safe_name", "digest", "verify", "output_options", "owned", "check_clear", "begin", "clean_leftovers",
-           "stale_stages", "Stage", "inside", "tree_conflict", "DirLock", "read_holder", "FaultError", "LockedError",
+           "stale_stages", "Stage", "inside", "tree_conflict", "DirLock", "read_holder", "running_holder",
+           "describe_holder", "FaultError", "LockedError",
            "fault", "LOCK", "STAGE_MARK", "COMMIT", "OUTPUT_OPTIONS", "OUTPUTS", "MAX_NAME"]
