@@ -239,19 +239,31 @@ class Sweep(Mode):
         return status
 
 
-class TuningStudy(Mode):
-    """A gain-tuning study (``+tune=<controller>``, docs/model.md §9): Optuna's trials through Hydra's sweeper,
-    resumed from its SQLite storage; this session runs the rest of the budget."""
+class _OptunaStudy(Mode):
+    """A mode whose session is an Optuna study stored in the sweep dir (:class:`ddmr_cli.study.tuning.Session`):
+    planned read only, started under the dir's lock (the trials a killed session left RUNNING marked failed)."""
+
+    def _prepare(self, base, overrides):
+        """The planned :class:`~ddmr_cli.study.tuning.Session` (checks the study's settings first)."""
+        raise NotImplementedError
 
     def plan(self, base, overrides, parsed, compose):
-        from ddmr_cli.study import tuning
-
-        self.session = tuning.prepare_study(base, overrides)  # read only: the lock is not held yet
+        self.session = self._prepare(base, overrides)  # read only: the lock is not held yet
         return Plan([], self.session.overrides)
 
     def before_launch(self, out_dir, jobs):
         super().before_launch(out_dir, jobs)
-        self.session.start()  # under the lock: killed trials marked failed
+        self.session.start()  # under the lock
+
+
+class TuningStudy(_OptunaStudy):
+    """A gain-tuning study (``+tune=<controller>``, docs/model.md §9): Optuna's trials through Hydra's sweeper,
+    resumed from its SQLite storage; this session runs the rest of the budget."""
+
+    def _prepare(self, base, overrides):
+        from ddmr_cli.study import tuning
+
+        return tuning.prepare_study(base, overrides)
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.study import tuning
@@ -259,18 +271,13 @@ class TuningStudy(Mode):
         return tuning.finish(out_dir)
 
 
-class CalibrationSearch(Mode):
+class CalibrationSearch(_OptunaStudy):
     """The sensitivity study's calibration search (``+experiment=sensitivity_calibration``, docs/model.md §11)."""
 
-    def plan(self, base, overrides, parsed, compose):
+    def _prepare(self, base, overrides):
         from ddmr_cli.study import search
 
-        self.session = search.prepare_search(base)  # read only: the lock is not held yet
-        return Plan([], self.session.overrides)
-
-    def before_launch(self, out_dir, jobs):
-        super().before_launch(out_dir, jobs)
-        self.session.start()  # under the lock: killed trials marked failed
+        return search.prepare_search(base)
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.study import search

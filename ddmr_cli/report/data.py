@@ -325,9 +325,8 @@ def load(path) -> ReportData:
     """Read a sweep dir or a single run dir; raises DDMRError when there is nothing to report."""
     import pandas as pd
 
-    from ddmr_cli.storage.sweep import PLAN, load_sweep
-
     from ddmr_cli.storage.jobdir import running_holder
+    from ddmr_cli.storage.sweep import PLAN, load_sweep
 
     path = Path(path).expanduser().resolve()
     if not path.is_dir():

@@ -383,7 +383,8 @@ def _holder() -> dict:
             "started": time.strftime("%Y-%m-%d %H:%M:%S")}
 
 
-def _describe(holder: dict | None) -> str:
+def describe_holder(holder: dict | None) -> str:
+    """``pid N on HOST since TIME (COMMAND)``: a lock holder as the CLI names it."""
     if not holder:
         return "another ddmr process (it has not recorded itself yet)"
     return (f"pid {holder.get('pid')} on {holder.get('host')} since {holder.get('started')} "
@@ -403,22 +404,17 @@ def running_holder(directory: Path) -> dict | None:
         return holder  # another host, on a shared file system: taken at its word
     if pid == os.getpid() or not _alive(pid, host):
         return None
-    try:
-        import psutil
+    import psutil
 
+    try:
         started = time.mktime(time.strptime(str(holder.get("started")), "%Y-%m-%d %H:%M:%S"))
         if psutil.Process(pid).create_time() > started + 1.0:  # the pid now names a process started later
             return None
-    except (ValueError, OverflowError, ImportError):
-        pass  # no usable start time: the live pid is taken at its word
-    except Exception:  # noqa: BLE001 - psutil.NoSuchProcess (it ended meanwhile), AccessDenied
-        return None if not _alive(pid, host) else holder
+    except psutil.NoSuchProcess:  # it ended meanwhile
+        return None
+    except (ValueError, OverflowError, psutil.Error):
+        pass  # no usable start time (or not ours to ask): the live pid is taken at its word
     return holder
-
-
-def describe_holder(holder: dict | None) -> str:
-    """``pid N on HOST since TIME (COMMAND)``: a lock holder as the CLI names it."""
-    return _describe(holder)
 
 
 #: what marks a dir as a sweep's (its plan) and as a single run's (its summary at the top)
@@ -466,7 +462,7 @@ def tree_conflict(directory: Path, kind: str) -> str | None:
     for parent in directory.parents:
         if (parent / LOCK).is_file():
             holder = _held(parent)
-            state = (f"in use by {_describe(holder)}" if holder is not None
+            state = (f"in use by {describe_holder(holder)}" if holder is not None
                      else "a finished or stopped run's or sweep's dir")
             return f"inside {parent}, the output dir of another ddmr run or sweep ({state}); choose a dir outside it"
     below = _claimed_below(directory) if directory.is_dir() else None
@@ -509,7 +505,7 @@ class DirLock:
             self.directory.mkdir(parents=True, exist_ok=True)
             lock.acquire()
         except Timeout:
-            raise LockedError(self.directory, f"in use by {_describe(_live_holder(self.directory, self.name))}; "
+            raise LockedError(self.directory, f"in use by {describe_holder(_live_holder(self.directory, self.name))}; "
                                               "wait for it to finish or choose another output dir") from None
         except OSError as exc:
             raise fault(exc) from None

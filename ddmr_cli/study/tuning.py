@@ -392,11 +392,12 @@ class Session:
         if not self.stored:
             return
         study = load_study(self.sweep_dir, self.study_name)
-        if trials_done(study) != self.done:
+        done = trials_done(study)
+        if done != self.done:
             from ddmr_cli.storage.jobdir import FaultError
 
             raise FaultError(Path(self.sweep_dir) / STORAGE_FILE, f"the study's trials changed while this session was "
-                             f"planned ({self.done} complete, now {trials_done(study)}); run the command again")
+                             f"planned ({self.done} complete, now {done}); run the command again")
         killed = close_killed_trials(study)
         print(f"ddmr: resuming study {study.study_name}: {self.done}/{self.budget} trials done"
               + (f" ({killed} left running by a killed session marked failed)" if killed else ""), flush=True)
