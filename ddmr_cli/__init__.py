@@ -22,9 +22,9 @@ A sweep's results (``ddmr run -m ...``), one row per job and seed, swept keys as
     table = load_sweep("outputs/run/2026-01-01_12-00-00")
 """
 
-from importlib import import_module
 from typing import TYPE_CHECKING
 
+from ddmr_cli.exports import lazy_exports
 from ddmr_cli.version import __version__
 
 #: public name -> module that defines it; imported on first use (PEP 562), so ``ddmr --help`` starts fast
@@ -45,16 +45,7 @@ _EXPORTS = {
 }
 
 
-def __getattr__(name: str):
-    if name in _EXPORTS:
-        value = getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'ddmr_cli' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(list(globals()) + list(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -34,7 +34,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("ddmr_cli.model",),                         # robot, terrain, scenario, sensor, actuator, kinematics
     ("ddmr_cli.bit_generators",),                # numpy's bit generators drawn from compiled code
     ("ddmr_cli.checks", "ddmr_cli.compiled", "ddmr_cli.workers", "ddmr_cli.compat", "ddmr_cli.version",
-     "ddmr_cli.data", "ddmr_cli.progress", "ddmr_cli.keyed", "ddmr_cli.display"),
+     "ddmr_cli.data", "ddmr_cli.progress", "ddmr_cli.keyed", "ddmr_cli.display", "ddmr_cli.exports"),
     ("ddmr_cli.errors",),
 ]
 #: packages that are part of another: Hydra instantiates sweepers only from ``hydra_plugins``, so the config

@@ -112,3 +112,18 @@ def test_a_user_target_that_is_not_a_controller_is_refused_naming_the_key(tmp_pa
     assert proc.stderr.strip().splitlines()[-1].startswith(
         "ddmr: error: controller._target_='mylab.ct.ComputedTorqueParameters': only ddmr_cli.* classes")
     assert not (tmp_path / "r").exists()
+
+
+def test_a_users_module_importing_the_plants_laws_from_their_old_module_still_runs_them():
+    """The plant's laws moved from model/robot.py to model/dynamics.py (robot.py then loads no numba, for the
+    report): a user's controller written against the old page imports them from robot still, gets the same law,
+    and is told where it went; a name robot never had is an AttributeError."""
+    import importlib
+
+    from ddmr_cli.model import dynamics, robot
+
+    for name in robot.MOVED_TO_DYNAMICS:
+        with pytest.warns(DeprecationWarning, match=f"ddmr_cli.model.robot.{name} has moved"):
+            assert getattr(importlib.import_module("ddmr_cli.model.robot"), name) is getattr(dynamics, name)
+    with pytest.raises(AttributeError):
+        robot.no_such_law

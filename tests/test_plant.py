@@ -195,7 +195,7 @@ def test_voltage_metrics_match_series(tiny_run):
 
 def test_estimation_metrics_match_series(tiny_run):
     res, s = tiny_run
-    from ddmr_cli.engine.results import d_hat
+    from ddmr_cli.engine.series import d_hat
 
     dt_r = s["d_true_right"] - d_hat(s, "right")  # the sum of the controller's estimates (none for this SMC)
     dt_l = s["d_true_left"] - d_hat(s, "left")

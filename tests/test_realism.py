@@ -231,6 +231,29 @@ def test_operation_counts_match_the_laws_read_by_hand(counts):
     assert nno["add"] > 4 * 10 and nno["mul"] > 6 * 10  # basis, estimate and update: a few per neuron and wheel
 
 
+def test_counting_leaves_every_module_its_math_and_a_module_imported_later_is_counted():
+    """The counter swaps ``math`` in the laws' modules for a counting one and puts the real one back: a controller
+    whose modules are imported after an earlier count (the control package imports each on first use) is counted
+    in full, and no module keeps a counting ``math`` (it did: the counter swapped its own module's ``math`` too,
+    and then put that back in the others)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import json, math, sys; from ddmr_cli.bench.cost import packaged_counts; "
+            "pid = packaged_counts(['pid']); later = sys.modules.get('ddmr_cli.control.rbf') is None; "
+            "nno = packaged_counts(['smc_ndo_nno'])['smc_ndo_nno']; "
+            "kept = sorted(n for n, m in sys.modules.items() if n.startswith('ddmr_cli') "
+            "and hasattr(m, 'math') and m.math is not math); "
+            "print(json.dumps([later, nno['transcendental'], kept]))")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+                         capture_output=True, text=True, check=True, timeout=300).stdout
+    later, transcendental, kept = __import__("json").loads(out.strip().splitlines()[-1])
+    assert later  # the NN's module was imported after the first count
+    assert transcendental == pytest.approx(7)
+    assert kept == []
+
+
 def test_operation_counts_are_kept_by_what_they_are_a_function_of(tmp_path, monkeypatch):
     """Counts are counted once per key (the laws' sources, the parameters, dt), kept in the cache dir and read
     back; a controller whose key changed is counted again, alone."""

@@ -656,18 +656,28 @@ def test_the_verdicts_need_neither_hydra_nor_numba_nor_matplotlib(mini_sweep):
 def test_the_reports_own_process_leaves_matplotlib_to_the_figure_processes(mini_sweep, tmp_path):
     """With figure processes, the report's own process (its tables and verdicts, issue 28) imports no matplotlib: the
     first figure process loads it and forks the others, and our Table 4 beside the paper's is one of their tasks,
-    embedded in the Table 4 section."""
+    embedded in the Table 4 section. No process of the report imports numba (0.2-0.3 s each): a report reads
+    results, and the robot, the series' channels and the metrics' cutoff it needs are plain Python."""
     import os
     import subprocess
     import sys
 
-    out = tmp_path / "out"
-    code = ("import sys; from ddmr_cli.report import build_report; "
-            f"build_report({str(mini_sweep)!r}, {str(out)!r}, progress=False); "
+    out, numba_imports = tmp_path / "out", tmp_path / "numba_imports"
+    hook = ("import importlib.abc, os, sys\n"
+            "class Watch(importlib.abc.MetaPathFinder):\n"
+            "    def find_spec(self, name, path, target=None):\n"
+            "        if name == 'numba':\n"
+            f"            open({str(numba_imports)!r}, 'a').write(str(os.getpid()) + '\\n')\n"
+            "        return None\n"
+            "sys.meta_path.insert(0, Watch())\n")  # forked figure processes inherit it
+    code = (hook + "from ddmr_cli.report import build_report\n"
+            f"build_report({str(mini_sweep)!r}, {str(out)!r}, progress=False)\n"
             "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=600,
                           env={**os.environ, "DDMR_REPORT_WORKERS": "2"})
     assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert not numba_imports.exists(), f"numba imported by the report's processes {numba_imports.read_text().split()}"
+    assert any("NN" in line for line in (out / "report.md").read_text().splitlines()), "the NN share was reported"
     assert (out / "figures" / "table4_vs_paper.png").read_bytes()[:4] == b"\x89PNG"
     assert "](figures/table4_vs_paper.png)" in _section((out / "report.md").read_text(), "Table 4: tracking")
 

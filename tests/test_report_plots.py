@@ -361,7 +361,8 @@ def test_nn_share_on_constructed_signals():
 
 
 def test_nominal_input_inverse_is_the_models():
-    from ddmr_cli.model.robot import NominalModel, Robot, voltage_for
+    from ddmr_cli.model.dynamics import voltage_for
+    from ddmr_cli.model.robot import NominalModel, Robot
 
     robot = make_robot(mass=20.0, wheel_radius=0.04)
     g_inv = S.nominal_input_inverse(dataclasses.asdict(robot))

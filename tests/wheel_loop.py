@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ddmr_cli import NominalModel
-from ddmr_cli.model.robot import nominal_acceleration, saturate
+from ddmr_cli.model.dynamics import nominal_acceleration, saturate
 from ddmr_cli.control.base import ESTIMATE, SURFACE
 
 

@@ -151,8 +151,9 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
     fake_math = SimpleNamespace(**{name: getattr(math, name) for name in dir(math) if not name.startswith("_")})
     for name in (*TRANSCENDENTAL, "sqrt"):
         setattr(fake_math, name, counting(name))
-    modules = [m for m in list(sys.modules.values())
-               if getattr(m, "__name__", "").startswith("ddmr_cli.") and getattr(m, "math", None) is math]
+    # every ddmr module that calls math, this one apart: it restores the others from its own ``math`` below
+    modules = [m for m in list(sys.modules.values()) if getattr(m, "__name__", "").startswith("ddmr_cli.")
+               and m is not sys.modules[__name__] and getattr(m, "math", None) is math]
     laws = controller.laws
     params = _wrap(controller.law_parameters(nominal, dt), counted)
     record = controller.initial_state(1)[0]

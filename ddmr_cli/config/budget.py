@@ -3,7 +3,7 @@
 A job holds, besides a fixed base (interpreter, numpy/numba, the compiled kernels, the noise buffer):
 
 - per step: the reference and phase arrays (built from a list of tuples) and the across-seed bands;
-- per kept series and step: the 31 channels of :data:`ddmr_cli.engine.results.SERIES_CHANNELS` (8 bytes each),
+- per kept series and step: the 31 channels of :data:`ddmr_cli.engine.series.SERIES_CHANNELS` (8 bytes each),
   copied into the result and again while written to ``series.npz`` and plotted;
 - per run: the run and metric records and their per-segment metrics, and twice the controller's state record
   (state and parameters; an RBF network of n neurons holds 3 n numbers per run).

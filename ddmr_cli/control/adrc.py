@@ -24,7 +24,8 @@ from ddmr_cli.checks import positive
 from ddmr_cli.compiled import law
 from ddmr_cli.control.base import ESTIMATE, STABILITY_LIMIT, SURFACE, Diagnostic, StepRate, WheelController
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.model.robot import NominalModel, nominal_acceleration, voltage_for
+from ddmr_cli.model.dynamics import nominal_acceleration, voltage_for
+from ddmr_cli.model.robot import NominalModel
 
 
 class ADRCParameters(NamedTuple):

@@ -13,7 +13,7 @@ from typing import NamedTuple
 from ddmr_cli.compiled import law
 from ddmr_cli.checks import compact, per_wheel, positive
 from ddmr_cli.control.base import StepRate
-from ddmr_cli.model.robot import nominal_acceleration
+from ddmr_cli.model.dynamics import nominal_acceleration
 
 
 class NDOParameters(NamedTuple):

@@ -17,7 +17,8 @@ from ddmr_cli.compiled import law
 from ddmr_cli.checks import boolean, compact, per_wheel
 from ddmr_cli.control.base import SURFACE, Diagnostic, WheelController
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.model.robot import NominalModel, sign
+from ddmr_cli.model.dynamics import sign
+from ddmr_cli.model.robot import NominalModel
 
 
 class PIDParameters(NamedTuple):

@@ -21,7 +21,8 @@ from ddmr_cli.compiled import law
 from ddmr_cli.control import ndo, rbf
 from ddmr_cli.checks import compact, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import ESTIMATE, SURFACE, Diagnostic, StepRate, WheelController
-from ddmr_cli.model.robot import NominalModel, sign, voltage_for
+from ddmr_cli.model.dynamics import sign, voltage_for
+from ddmr_cli.model.robot import NominalModel
 
 SURFACES = ("proportional", "integral")
 #: the switching function sw of (15): sgn as printed, or its boundary-layer forms

@@ -21,7 +21,8 @@ from ddmr_cli.compiled import law
 from ddmr_cli.control import ndo
 from ddmr_cli.control.pid import integrand
 from ddmr_cli.control.base import ESTIMATE, SURFACE, Diagnostic, StepRate, WheelController
-from ddmr_cli.model.robot import NominalModel, sign, voltage_for
+from ddmr_cli.model.dynamics import sign, voltage_for
+from ddmr_cli.model.robot import NominalModel
 
 
 class STAParameters(NamedTuple):

@@ -32,7 +32,10 @@ METRICS: dict[str, tuple[str, str]] = {
     "s_mae": ("rad/s", "mean |s| of both wheels"),
 }
 
+#: Cutoff of the chattering spectrum's high-pass [Hz] (docs/model.md §7: "power above 10 Hz"), for ``hf_fraction``.
+HF_CUTOFF = 10.0
+
 #: Suffix of a metric's steady-state twin (``deviation_mae_ss``): the same metric over the steps after settling.
 STEADY = "_ss"
 
-__all__ = ["METRICS", "STEADY"]
+__all__ = ["HF_CUTOFF", "METRICS", "STEADY"]

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from ddmr_cli.compiled import inlined_law, law
-from ddmr_cli.engine.catalog import METRICS, STEADY
+from ddmr_cli.engine.catalog import HF_CUTOFF, METRICS, STEADY
 
 #: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
 SUMS = ("count", "dev", "dev2", "tdev", "abs_ex", "abs_ey", "abs_eth", "saturated",
@@ -52,8 +52,6 @@ def estimation_membership(channels) -> np.ndarray:
     return out
 
 
-#: Cutoff of the chattering spectrum's high-pass [Hz] (docs/model.md §7: "power above 10 Hz").
-HF_CUTOFF = 10.0
 
 
 def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,5 @@
-"""The result of a batch of runs: per-run metrics (whole run, per zone, per phase), divergence, time series."""
+"""The result of a batch of runs: per-run metrics (whole run, per zone, per phase), divergence, time series; and
+:func:`record`, the law that writes a kept run's step (its channels: :mod:`ddmr_cli.engine.series`)."""
 
 from __future__ import annotations
 
@@ -8,51 +9,15 @@ from typing import TYPE_CHECKING, Iterator
 import numpy as np
 
 from ddmr_cli.compiled import law
-from ddmr_cli.control.base import ESTIMATE_PREFIX
 
 if TYPE_CHECKING:  # pandas is imported only when a table is asked for
     import pandas as pd
-
-#: Time-series channels every kept run has (one array per channel, shape (n_steps,)); ``s_*`` is the controller's
-#: SURFACE channel (NaN without one). The controller's other diagnostic channels follow (:func:`series_channels`).
-SERIES_CHANNELS = (
-    "t", "x", "y", "theta", "x_ref", "y_ref", "theta_ref", "e_x", "e_y", "e_theta", "deviation", "distance",
-    "w_right", "w_left", "w_d_right", "w_d_left", "u_right", "u_left", "u_command_right", "u_command_left",
-    "s_right", "s_left", "d_true_right", "d_true_left", "roughness", "damping_scale", "zone",
-)
-
-
-def series_channels(channels) -> tuple[str, ...]:
-    """Every series channel of a run of a controller with these diagnostic channels
-    (:class:`~ddmr_cli.control.base.Diagnostic`): :data:`SERIES_CHANNELS`, then each non-surface channel's
-    ``<series name>_right``/``_left`` (``d_hat_ndo_right``, ...) in row order."""
-    from ddmr_cli.control.base import SURFACE, series_name
-
-    extra = [f"{series_name(c)}_{wheel}" for c in channels if c.kind != SURFACE for wheel in ("right", "left")]
-    return SERIES_CHANNELS + tuple(extra)
-
-
-def estimate_names(series: dict) -> list[str]:
-    """The estimators whose estimate of d a run's series carry (``d_hat_<name>_right``), in the controller's row
-    order, upper-case (``NDO``, ``NN``, ``ESO``)."""
-    return [k[len(ESTIMATE_PREFIX):-len("_right")].upper() for k in series
-            if k.startswith(ESTIMATE_PREFIX) and k.endswith("_right")]
-
-
-def d_hat(series: dict, wheel: str = "right") -> np.ndarray:
-    """The controller's whole estimate of d on one wheel: the sum of its estimate channels
-    (``d_hat_<name>_<wheel>``, in row order), zero without one."""
-    out = np.zeros(len(series["t"])) if "t" in series else 0.0
-    for name in estimate_names(series):
-        out = out + series[f"{ESTIMATE_PREFIX}{name.lower()}_{wheel}"]
-    return out
-
 
 @law
 def record(row, t, x, y, theta, x_ref, y_ref, theta_ref, e_x, e_y, e_theta, deviation, distance, w_R, w_L,
            wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, roughness, damping_scale, zone, diagnostics,
            recorded):
-    """Write one step of a kept run into ``row``, in the order of :func:`series_channels`: the base channels,
+    """Write one step of a kept run into ``row``, in the order of :func:`~ddmr_cli.engine.series.series_channels`: the base channels,
     then rows ``recorded`` of the controller's ``diagnostics`` (right, left)."""
     row[0], row[1], row[2], row[3], row[4], row[5], row[6] = t, x, y, theta, x_ref, y_ref, theta_ref
     row[7], row[8], row[9], row[10], row[11] = e_x, e_y, e_theta, deviation, distance

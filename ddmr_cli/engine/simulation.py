@@ -26,7 +26,8 @@ from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import check_single_signature, compiled_external_step, compiled_run_chunk
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
 from ddmr_cli.model.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
-from ddmr_cli.engine.results import SimulationResult, series_channels
+from ddmr_cli.engine.results import SimulationResult
+from ddmr_cli.engine.series import series_channels
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.actuator import Actuator, actuator_fields
 from ddmr_cli.model.kinematics import inverse

@@ -36,7 +36,7 @@ from ddmr_cli.model.noise import ou_step
 from ddmr_cli.engine.results import record
 from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.kinematics import deviation, inverse, pose_error
-from ddmr_cli.model.robot import saturate, wheel_acceleration
+from ddmr_cli.model.dynamics import saturate, wheel_acceleration
 from ddmr_cli.model.scenario import damping_scale
 from ddmr_cli.model.terrain import zone_of
 

@@ -1,7 +1,7 @@
 """What the motor gets: the controller's voltage through PWM quantisation, a delay and a driver lag (docs/model.md §10).
 
 At each control instant the controller's command ``u_c`` is saturated to ``+-U_max`` (the driver's limit,
-:func:`ddmr_cli.model.robot.saturate`) and written as a PWM duty of ``bits`` bits: ``u_s = du round(u / du)``,
+:func:`ddmr_cli.model.dynamics.saturate`) and written as a PWM duty of ``bits`` bits: ``u_s = du round(u / du)``,
 ``du = U_max / (2^bits - 1)`` (:func:`pwm`; sign and magnitude, so 0 V is a level). ``u_s`` is what the controller
 believes it applied (its observers are fed with it). It is held until the next control instant (zero-order hold),
 reaches the driver ``delay`` seconds later (a whole number of plant steps; :func:`delay_line`) and the motor

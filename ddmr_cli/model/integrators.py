@@ -1,7 +1,7 @@
 """One step of the plant and the pose, with ``u`` and the disturbances held over it (docs/model.md §4).
 
 The state is the pose ``(x, y, theta)``, the distance travelled and the wheel speeds ``w``; its derivative is
-the forward kinematics (1)-(2) and the plant (8) (:func:`ddmr_cli.model.robot.wheel_acceleration`).
+the forward kinematics (1)-(2) and the plant (8) (:func:`ddmr_cli.model.dynamics.wheel_acceleration`).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import math
 
 from ddmr_cli.compiled import law
 from ddmr_cli.model.kinematics import forward
-from ddmr_cli.model.robot import wheel_acceleration
+from ddmr_cli.model.dynamics import wheel_acceleration
 
 
 @law

@@ -26,7 +26,8 @@ import numpy as np
 
 from ddmr_cli.compiled import plain
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.model.robot import NominalModel, Robot, nominal_acceleration
+from ddmr_cli.model.dynamics import nominal_acceleration
+from ddmr_cli.model.robot import NominalModel, Robot
 from ddmr_cli.model.scenario import Scenario
 from ddmr_cli.model.terrain import Terrain
 from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_robot, elevation_range, field_layout,
@@ -327,7 +328,7 @@ class MujocoPlant:
     def true_disturbance(self) -> np.ndarray:
         """The lumped disturbance d of the paper's (8) over the last step [rad/s^2], ``(n, 2)``, docs/model.md
         [13g]: the measured wheel acceleration ``(w_{k+1} - w_k) / dt`` less what the nominal model explains,
-        ``f(w_k) + g u_k`` (:func:`ddmr_cli.model.robot.nominal_acceleration`); NaN for a diverged run."""
+        ``f(w_k) + g u_k`` (:func:`ddmr_cli.model.dynamics.nominal_acceleration`); NaN for a diverged run."""
         return self._d.copy()
 
     def energy(self) -> np.ndarray:

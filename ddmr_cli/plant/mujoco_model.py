@@ -272,7 +272,7 @@ def motor_gains(robot: Robot) -> tuple[float, float]:
     """The DC-motor law ``tau = K_u u - b B w`` (docs/model.md [13a], [1b]; b of [5d]) as two MuJoCo actuators
     per wheel: a motor of gain ``K_u = k_t / R_a`` [N m/V] on the voltage ``u`` and a damper whose gain is affine in the wheel
     speed, ``-B w`` [N m s/rad] with ``B = b_v + k_t k_e / R_a``, on the control ``b`` (scenario 2's damping
-    scale, 1 when none), which multiplies the whole of B as in :func:`ddmr_cli.model.robot.disturbance`. Returns
+    scale, 1 when none), which multiplies the whole of B as in :func:`ddmr_cli.model.dynamics.disturbance`. Returns
     ``(K_u, -B)``."""
     return robot.voltage_gain, -robot.damping
 

@@ -5,7 +5,7 @@ It is the wheel plant of :mod:`ddmr_cli.plant.wheel` written as an :class:`~ddmr
 from the model's own laws, run as plain Python: per run and step the terrain's OU roughness torques (drawn from
 the run's own seed exactly as the engine draws them, :class:`~ddmr_cli.model.noise.NoiseStreams`, so the same
 seed gives the same terrain), the rolling resistance of the zone, the acceleration (8) with the true d
-(:func:`~ddmr_cli.model.robot.wheel_acceleration`) under the applied voltages and the damping scale the engine
+(:func:`~ddmr_cli.model.dynamics.wheel_acceleration`) under the applied voltages and the damping scale the engine
 hands it, and explicit Euler (:func:`~ddmr_cli.model.integrators.euler`). So ``plant=wheel_python`` gives
 ``plant=wheel``'s numbers to rounding (tests/test_external_plant.py: 1e-9 relative; Python rounds every
 operation where compiled code may fuse a multiply-add), several hundred times slower (about 160 us a run-step
@@ -27,7 +27,7 @@ from ddmr_cli.compiled import plain
 from ddmr_cli.model.integrators import euler
 from ddmr_cli.model.noise import NoiseStreams, ou_coefficients, ou_step
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.model.robot import wheel_acceleration
+from ddmr_cli.model.dynamics import wheel_acceleration
 from ddmr_cli.model.terrain import zone_of
 
 __all__ = ["PythonWheelPlant", "check", "factory"]

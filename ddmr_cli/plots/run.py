@@ -104,7 +104,7 @@ class Run:
 
     @classmethod
     def of(cls, info: RunInfo, series: dict[str, np.ndarray]) -> "Run":
-        from ddmr_cli.engine.results import estimate_names
+        from ddmr_cli.engine.series import estimate_names
 
         settle, label = float(info.settle_time), label_of(info.controller)
         return cls(label, f"{label}, {info.scenario}, seed {info.seed}",
@@ -260,8 +260,8 @@ class _Control(_Figure):
     @classmethod
     def channels(cls, series: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """:attr:`CHANNELS` and, as :attr:`ESTIMATE`, the controller's whole estimate of d on the right wheel
-        (:func:`~ddmr_cli.engine.results.d_hat`; none without an estimator)."""
-        from ddmr_cli.engine.results import d_hat, estimate_names
+        (:func:`~ddmr_cli.engine.series.d_hat`; none without an estimator)."""
+        from ddmr_cli.engine.series import d_hat, estimate_names
 
         out = super().channels(series)
         if estimate_names(series):

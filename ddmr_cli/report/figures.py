@@ -468,7 +468,7 @@ class ScenarioFigures:
         if not observers:
             self.notes.append(f"{self.scenario}: no job with a disturbance observer; Fig. 7 skipped")
             return
-        from ddmr_cli.engine.results import d_hat as whole_estimate, estimate_names
+        from ddmr_cli.engine.series import d_hat as whole_estimate, estimate_names
 
         t0, t1 = self._zoom_window()
         fig, axes = self._panel_grid(plt, len(observers))

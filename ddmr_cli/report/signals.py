@@ -7,28 +7,19 @@ import math
 
 import numpy as np
 
-#: The high-pass cutoff of the hf_fraction metric when neither the job's config nor the engine says otherwise.
-DEFAULT_HF_CUTOFF = 10.0
+from ddmr_cli.engine.catalog import HF_CUTOFF
 
 
 def hf_cutoff(config_flat: dict | None = None) -> float:
     """The cutoff [Hz] the engine's ``hf_fraction`` metric uses: a ``*hf_cutoff`` config value when the job has
-    one, else the metric accumulator's default."""
+    one, else the engine's (:data:`ddmr_cli.engine.catalog.HF_CUTOFF`)."""
     for key, value in (config_flat or {}).items():
         if key.endswith("hf_cutoff"):
             try:
                 return float(value)
             except (TypeError, ValueError):
                 break
-    try:
-        import inspect
-
-        from ddmr_cli.engine.metrics import MetricAccumulator
-
-        default = inspect.signature(MetricAccumulator.__init__).parameters["hf_cutoff"].default
-        return float(default)
-    except Exception:  # noqa: BLE001 - the engine is being rewritten; the documented default stands
-        return DEFAULT_HF_CUTOFF
+    return HF_CUTOFF
 
 
 def mean_abs(*arrays: np.ndarray) -> float:
