@@ -220,6 +220,21 @@ def test_the_lock_names_the_path_of_a_fault(tmp_path, make, reason):
     assert reason in info.value.reason and info.value.path == str(target)
 
 
+def test_ddmr_run_in_process_gives_the_caller_its_argv_back(tmp_path, monkeypatch):
+    """Hydra reads sys.argv, so ``ddmr run`` sets it; run in-process (the Python API, a test) it puts the caller's
+    back, so a lock taken afterwards names the caller's own command (it named the last in-process run's, and a
+    test that looked for a word in a refusal found it in that command)."""
+    from ddmr_cli.cli import run
+
+    monkeypatch.setattr("sys.argv", ["caller", "--own"])
+    assert run.hydra(["--help"]) == 0
+    import sys
+
+    assert sys.argv == ["caller", "--own"]
+    with jobdir.DirLock(tmp_path, kind="sweep"):
+        assert jobdir.read_holder(tmp_path)["command"] == "ddmr --own"
+
+
 # --- kept series ---------------------------------------------------------------------------------------------
 
 

@@ -229,12 +229,15 @@ def hydra(argv: list[str], completing: bool = False) -> int:
     """Hydra's exit status for ``ddmr run ARGV`` (0 when it returns)."""
     from ddmr_cli.cli.hydra_main import main as hydra_main
 
-    # shell completion registers and queries the program `ddmr` (see `main`); everything else is `ddmr run`
-    sys.argv = ["ddmr" if completing else "ddmr run", *argv]
+    # shell completion registers and queries the program `ddmr` (see `main`); everything else is `ddmr run`. Hydra
+    # reads sys.argv; it is put back after, so a caller in this process (the Python API, a test) keeps its own
+    saved, sys.argv = sys.argv, ["ddmr" if completing else "ddmr run", *argv]
     try:
         hydra_main()
     except SystemExit as exc:  # Hydra exits 1 after printing a job's error
         return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_FAILED
+    finally:
+        sys.argv = saved
     return 0
 
 
