@@ -4,13 +4,13 @@ channel kinds without loading numba)."""
 
 from __future__ import annotations
 
+import sys
 from importlib import import_module
 
 
 def lazy_exports(package: str, exports: dict[str, str]):
     """The module-level ``__getattr__`` and ``__dir__`` of ``package`` for ``exports`` (public name -> the module,
     relative to the package, that defines it): a name is imported when first read, then kept in the package."""
-    import sys
 
     def __getattr__(name: str):
         if name in exports:
