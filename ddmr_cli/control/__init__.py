@@ -31,5 +31,4 @@ if TYPE_CHECKING:  # pragma: no cover
     from ddmr_cli.control.smc import SMC, SWITCHING_FUNCTIONS
     from ddmr_cli.control.sta import SuperTwisting
 
-__all__ = ["WheelController", "PID", "SMC", "AdaptiveSMC", "SuperTwisting", "ADRC", "OpenLoop", "NonlinearDisturbanceObserver", "RBFNetworkObserver",
-           "Kanayama", "SWITCHING_FUNCTIONS"]
+__all__ = list(_EXPORTS)

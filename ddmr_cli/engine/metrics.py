@@ -52,8 +52,6 @@ def estimation_membership(channels) -> np.ndarray:
     return out
 
 
-
-
 def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """2nd-order Butterworth high-pass by the bilinear transform with pre-warping, as one biquad
     ``[b0, b1, b2, 1, a1, a2]`` (what ``scipy.signal.butter(2, cutoff, 'highpass', fs=1/dt, output='sos')``

@@ -17,8 +17,9 @@ if TYPE_CHECKING:  # pandas is imported only when a table is asked for
 def record(row, t, x, y, theta, x_ref, y_ref, theta_ref, e_x, e_y, e_theta, deviation, distance, w_R, w_L,
            wd_R, wd_L, u_R, u_L, uc_R, uc_L, s_R, s_L, d_R, d_L, roughness, damping_scale, zone, diagnostics,
            recorded):
-    """Write one step of a kept run into ``row``, in the order of :func:`~ddmr_cli.engine.series.series_channels`: the base channels,
-    then rows ``recorded`` of the controller's ``diagnostics`` (right, left)."""
+    """Write one step of a kept run into ``row``, in the order of
+    :func:`~ddmr_cli.engine.series.series_channels`: the base channels, then rows ``recorded`` of the controller's
+    ``diagnostics`` (right, left)."""
     row[0], row[1], row[2], row[3], row[4], row[5], row[6] = t, x, y, theta, x_ref, y_ref, theta_ref
     row[7], row[8], row[9], row[10], row[11] = e_x, e_y, e_theta, deviation, distance
     row[12], row[13], row[14], row[15], row[16], row[17], row[18], row[19] = w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ddmr_cli.control.base import ESTIMATE_PREFIX
+from ddmr_cli.control.base import ESTIMATE_PREFIX, SURFACE, series_name
 
 #: Time-series channels every kept run has (one array per channel, shape (n_steps,)); ``s_*`` is the controller's
 #: SURFACE channel (NaN without one). The controller's other diagnostic channels follow (:func:`series_channels`).
@@ -24,8 +24,6 @@ def series_channels(channels) -> tuple[str, ...]:
     """Every series channel of a run of a controller with these diagnostic channels
     (:class:`~ddmr_cli.control.base.Diagnostic`): :data:`SERIES_CHANNELS`, then each non-surface channel's
     ``<series name>_right``/``_left`` (``d_hat_ndo_right``, ...) in row order."""
-    from ddmr_cli.control.base import SURFACE, series_name
-
     extra = [f"{series_name(c)}_{wheel}" for c in channels if c.kind != SURFACE for wheel in ("right", "left")]
     return SERIES_CHANNELS + tuple(extra)
 
