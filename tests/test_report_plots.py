@@ -111,6 +111,53 @@ def test_save_lays_out_once_and_draws_once_with_the_pixels_of_a_plain_tight_layo
     assert ours.shape == plain.shape and np.array_equal(ours, plain)
 
 
+def test_titles_at_the_top_of_their_axes_give_the_pixels_of_matplotlibs_own_placement(tmp_path):
+    """``RC_PARAMS`` turns matplotlib's automatic title placement off (it lays out the y tick labels once more per
+    titled axes and draw); where it would not move a title, the figure is the same."""
+    import matplotlib
+    import matplotlib.image as mpimg
+
+    plt = P.pyplot()
+    assert matplotlib.rcParams["axes.titley"] == 1.0
+    P.save(_two_panels(plt), tmp_path / "ours.png")
+    with matplotlib.rc_context({"axes.titley": None}):
+        fig = _two_panels(plt)
+        assert fig.axes[0]._autotitlepos  # matplotlib's own placement, for the comparison
+        P.save(fig, tmp_path / "auto.png")
+    ours, auto = mpimg.imread(tmp_path / "ours.png"), mpimg.imread(tmp_path / "auto.png")
+    assert ours.shape == auto.shape and np.array_equal(ours, auto)
+
+
+def _offset_panel(plt, title: str):
+    """An axes whose y tick labels need an offset text ("1e-5+1.1e1", drawn above the top left corner)."""
+    fig, ax = plt.subplots(figsize=(4, 3))
+    t = np.linspace(0.0, 6.0, 50)
+    ax.plot(t, 11.0 + 1e-5 * np.sin(t))
+    ax.set_title(title)
+    return fig, ax
+
+
+def test_a_title_running_into_its_axis_offset_text_is_lifted_over_it(tmp_path):
+    plt = P.pyplot()
+    fig, ax = _offset_panel(plt, "a long title that reaches the left edge of the axes")
+    drawn = []
+    original_draw = fig.draw
+    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    P.save(fig, tmp_path / "lifted.png")
+    offset = ax.yaxis.offsetText
+    assert offset.get_visible() and offset.get_text()
+    assert ax.title.get_window_extent().y0 >= offset.get_window_extent().y1 - 0.5  # pixels
+    assert ax.title.get_position()[1] > 1.0 and len(drawn) >= 2  # lifted, then laid out and drawn again
+    fig, ax = _offset_panel(plt, "short")  # clear of the offset text: not moved, drawn once
+    drawn.clear()
+    original_draw = fig.draw
+    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    P.save(fig, tmp_path / "short.png")
+    assert len(drawn) == 1
+    assert ax.title.get_position()[1] == 1.0  # the value set, not a computed one
+    assert not ax.title.get_window_extent().overlaps(ax.yaxis.offsetText.get_window_extent())
+
+
 def test_run_plots_use_the_shared_helpers(tmp_path):
     from ddmr_cli.plots.run import run_plots
 

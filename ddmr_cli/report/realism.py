@@ -201,12 +201,9 @@ def nn_shares(data: ReportData, scenario: str) -> list[dict]:
 def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | None:
     """Steady-state deviation and chattering against each effect, one line per controller (mean and 5-95 % band
     over the seeds), and the NN's share of the estimate against the noise."""
-    import matplotlib
+    from ddmr_cli.plots.common import label_of, pyplot, save
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ddmr_cli.plots.common import label_of
+    plt = pyplot()
 
     jobs = [(j, classify(j)) for j in data.jobs if j.scenario == scenario]
     effects = [e for e in EFFECTS if any(p.effect == e for _, p in jobs)]
@@ -264,9 +261,7 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
     from ddmr_cli.storage.jobdir import safe_name
 
     path = out_dir / f"realism_{safe_name(scenario)}.png"  # one path component, whatever the name (issue 26)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save(fig, path, tight=False)  # atomically, as every figure (it wrote in place before)
 
 
 def _y_scale(ax) -> None:
