@@ -353,3 +353,52 @@ def test_ctrl_c_in_a_stage_stops_the_study_and_another_study_on_the_dir_is_refus
     with DirLock(out, name=sensitivity.STUDY_LOCK):
         assert sensitivity.main(["--out", str(out), "--stages", "oat"]) == 1
     assert started == [] and "in use by pid" in capsys.readouterr().err
+
+
+def test_a_full_disk_at_the_study_summary_keeps_the_last_summary_whole(tmp_path, monkeypatch, capsys):
+    """The study's summary is replaced, not rewritten in place: a write that fails (here: no space left, on any
+    file of the summary's name opened for writing, through ``open`` or ``Path.write_text``) leaves the last one
+    readable, and the study ends with one error line naming the file, exit 1."""
+    import builtins
+    import errno
+    import io as std_io
+
+    from ddmr_cli.cli import run as run_module
+    from ddmr_cli.cli import sensitivity
+
+    monkeypatch.setattr(run_module, "cmd_run", lambda argv: 0)
+    monkeypatch.setattr("ddmr_cli.report.sensitivity.write_report", lambda out: out / "report.md")
+    out = tmp_path / "study"
+    assert sensitivity.main(["--out", str(out), "--stages", "oat"]) == 0
+    before = (out / sensitivity.SUMMARY).read_text()
+    assert set(json.loads(before)["stages"]) == {"oat"}
+
+    real_open = builtins.open
+
+    class Full:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def write(self, _text):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def __getattr__(self, name):
+            return getattr(self.fh, name)
+
+    def full_disk(file, mode="r", *args, **kwargs):
+        fh = real_open(file, mode, *args, **kwargs)
+        return Full(fh) if "w" in mode and sensitivity.SUMMARY in str(file) else fh
+
+    monkeypatch.setattr(builtins, "open", full_disk)
+    monkeypatch.setattr(std_io, "open", full_disk)
+    assert sensitivity.main(["--out", str(out), "--stages", "morris"]) == 1
+    monkeypatch.undo()
+    assert (out / sensitivity.SUMMARY).read_text() == before
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("ddmr: error: ") and "No space left on device" in err[-1] and sensitivity.SUMMARY in err[-1]

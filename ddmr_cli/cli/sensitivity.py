@@ -88,6 +88,7 @@ def main(argv: Sequence[str]) -> int:
 def _study(out: Path, stages: list[str], args) -> int:
     """The stages and the report of the study in ``out``, holding its lock."""
     from ddmr_cli.cli.run import cmd_run
+    from ddmr_cli.storage import io
 
     summary_path = out / SUMMARY
     record = json.loads(summary_path.read_text()) if summary_path.is_file() else {"stages": {}}
@@ -100,8 +101,11 @@ def _study(out: Path, stages: list[str], args) -> int:
                             *args.overrides, *extra])
             record["stages"][stage] = {"wall_time": time.perf_counter() - started, "exit": code,
                                        "overrides": [*args.overrides, *extra], **_counts(out / stage)}
-            out.mkdir(parents=True, exist_ok=True)
-            summary_path.write_text(json.dumps(record, indent=2))
+            try:  # atomically: a study killed or out of disk here keeps its last summary whole
+                io.write_text(summary_path, json.dumps(record, indent=2))
+            except OSError as exc:
+                print(f"ddmr: error: {exc.filename or summary_path}: {exc.strerror or exc}", file=sys.stderr)
+                return EXIT_FAILED
             if code == INTERRUPTED:  # Ctrl-C stops the study; the same command resumes it
                 print(f"ddmr: study interrupted in stage {stage}; run the same command again to resume",
                       file=sys.stderr)
