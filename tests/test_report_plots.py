@@ -62,6 +62,9 @@ def test_thin_keeps_the_envelope():
     y_nan = y.copy()
     y_nan[:10] = np.nan
     assert len(P.thin(y_nan, 2000)) <= 2100
+    even = y[:100_000]  # a whole number of bins (100 samples each): the last sample is kept for itself
+    idx = P.thin(even, 2000)
+    assert idx[0] == 0 and idx[-1] == len(even) - 1 and np.all(np.diff(idx) > 0)
 
 
 def test_draw_order_puts_quiet_lines_on_top():

@@ -258,8 +258,10 @@ def thin(y: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
     m = n // k * k
     bins = np.nan_to_num(np.asarray(y[:m], float), nan=0.0).reshape(-1, k)
     base = np.arange(0, m, k)
-    idx = np.concatenate([base + bins.argmin(axis=1), base + bins.argmax(axis=1), np.arange(m, n), [0, n - 1]])
-    return np.unique(idx)
+    keep = np.zeros(n, dtype=bool)  # sorted and unique, as np.unique would give them, without its sort or hash
+    keep[base + bins.argmin(axis=1)] = keep[base + bins.argmax(axis=1)] = True
+    keep[m:] = keep[0] = keep[n - 1] = True
+    return np.flatnonzero(keep)
 
 
 def spread(a) -> float:
