@@ -146,8 +146,8 @@ def label_of(controller: str) -> str:
 #: automatic placement lays out the y axis' tick labels once more for each titled axes, in every draw and every
 #: ``tight_layout``, only to lift the title over a top x axis (no figure here has one) or over the y axis' offset
 #: text ("1e-3", "+1.1e1"), which :func:`save` does itself when it happens (:func:`lift_titles`). The same pixels on
-#: every figure of table4's report and ``ddmr run``; 0.93x the report's wall and CPU, 0.96x ``ddmr run``'s (paired
-#: runs).
+#: every figure of table4's report and ``ddmr run``; 0.93x the CPU of table4's report figures (6 alternating pairs),
+#: 0.93-0.98x the wall of its ``ddmr report`` and 0.95-0.98x that of ``ddmr run`` (paired runs, two sessions each).
 RC_PARAMS = {"font.size": 9, "axes.titlesize": 10, "legend.fontsize": 8, "path.simplify": True,
              "agg.path.chunksize": 10000, "figure.autolayout": False, "figure.constrained_layout.use": False,
              "figure.dpi": DPI, "axes.titley": 1.0}

@@ -261,7 +261,7 @@ def figure(data: ReportData, scenario: str, out_dir: Path, styles) -> Path | Non
     from ddmr_cli.storage.jobdir import safe_name
 
     path = out_dir / f"realism_{safe_name(scenario)}.png"  # one path component, whatever the name (issue 26)
-    return save(fig, path, tight=False)  # atomically, as every figure (it wrote in place before)
+    return save(fig, path, tight=False)  # atomically, as every figure
 
 
 def _y_scale(ax) -> None:
