@@ -12,8 +12,10 @@ Who shows what:
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
   (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own;
-- ``ddmr report``: a bar over the report's sections and figures, and the verdicts (:func:`say`) as soon as they
-  are known, before the figures are drawn;
+- ``ddmr report``: on a terminal a :func:`status` line while it reads the jobs, then a bar over the report's
+  sections and figures, both drawn at once when the command has already run for :data:`DELAY` s
+  (:func:`delay_since_start`), and the verdicts (:func:`say`) as soon as they are known, before the figures are
+  drawn;
 - ``ddmr bench``: a :func:`status` line for each measurement, saying what it measures and for how long.
 """
 
@@ -39,6 +41,22 @@ TTY_EVERY = 0.2
 DELAY = float(os.environ.get("DDMR_PROGRESS_DELAY", "1.0"))
 _LINE_FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f} %), {elapsed} elapsed, {remaining} left"
 _STATUS_FORMAT = "{desc} ({elapsed} elapsed)"
+
+
+def delay_since_start(stream: TextIO | None = None) -> float:
+    """The delay of a bar that a command draws late in its start-up: on a terminal (``stream``, default stderr),
+    :data:`DELAY` less the time this process has already run (psutil's start time), so that a command silent for
+    :data:`DELAY` s since it started shows its progress at once (``ddmr report``'s imports and read of the jobs take
+    1-2 s before its bar exists); in a log, :data:`DELAY` (a refused command there prints its one error line only)."""
+    if not interactive(stream):
+        return DELAY
+    import psutil
+
+    try:
+        ran = time.time() - psutil.Process().create_time()
+    except (psutil.Error, OSError):
+        return DELAY
+    return min(DELAY, max(0.0, DELAY - ran))
 
 
 def interactive(stream: TextIO | None = None) -> bool:
@@ -264,5 +282,5 @@ class SweepWatch:
             self._bar.close()
 
 
-__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "each", "interactive", "quiet_sweep_logging",
-           "status"]
+__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "delay_since_start",
+           "each", "interactive", "quiet_sweep_logging", "status"]

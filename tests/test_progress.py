@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import subprocess
 import sys
 import types
@@ -143,3 +144,46 @@ def test_a_sweep_shows_validation_and_job_progress_as_lines_in_a_log(tmp_path):
     quiet = _ddmr([*args[:-2], "run.progress=false", f"hydra.sweep.dir={tmp_path / 'q'}", "launcher=basic"],
                   tmp_path, delay=0)
     assert quiet.returncode == 0 and "validating" not in quiet.stderr and "sweep:" not in quiet.stderr
+
+
+def _started(monkeypatch, seconds_ago: float) -> None:
+    """This process started ``seconds_ago`` s ago, as psutil reports it."""
+    import time
+
+    import psutil
+
+    monkeypatch.setattr(psutil.Process, "create_time", lambda self: time.time() - seconds_ago)
+
+
+def test_a_bar_drawn_late_in_a_commands_start_up_waits_only_for_what_is_left_of_the_delay(monkeypatch):
+    """On a terminal the delay counts from the process' start: a command silent for DELAY s draws at once; in a
+    log it is the whole DELAY (a refused command there prints its one error line only)."""
+    monkeypatch.setattr(progress, "DELAY", 1.0)
+    _started(monkeypatch, 5.0)
+    assert progress.delay_since_start(_Tty()) == 0.0
+    _started(monkeypatch, 0.25)
+    assert progress.delay_since_start(_Tty()) == pytest.approx(0.75, abs=0.1)
+    assert progress.delay_since_start(io.StringIO()) == 1.0
+
+
+def test_a_report_shows_its_progress_at_once_on_a_terminal_after_a_long_start_up(tmp_path, monkeypatch):
+    """``ddmr report`` spends 1-2 s on imports and reading the jobs before its bar exists: on a terminal, the read
+    is said and the bar drawn as soon as they start (the process has been silent for over DELAY s); in a log, the
+    read is not said."""
+    import ddmr_cli
+    from ddmr_cli.job import JobPlace, execute
+    from ddmr_cli.report.build import build
+
+    overrides = ["controller=pid", "run.n_runs=1", "simulation.duration=0.2", "run.plots=false", "run.progress=false"]
+    execute(ddmr_cli.compose_config(overrides), JobPlace(tmp_path / "run", tuple(overrides)))
+    monkeypatch.setattr(progress, "DELAY", 1.0)
+    _started(monkeypatch, 30.0)
+    tty = _Tty()
+    monkeypatch.setattr(sys, "stderr", tty)
+    build(tmp_path / "run", tmp_path / "rep_tty", figures=False)
+    assert "\rreport: reading the jobs (00:00 elapsed)" in tty.getvalue()
+    assert re.search(r"\rreport: +0%\|", tty.getvalue())  # the bar, drawn when made
+    log = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", log)
+    build(tmp_path / "run", tmp_path / "rep_log", figures=False)
+    assert "reading the jobs" not in log.getvalue()

@@ -492,17 +492,21 @@ def build(path, out=None, margin=None, figures: bool = True, progress: bool = Tr
     report's dir is locked, so a refused report prints its one error line only; ``all_figures``: every figure of
     every scenario (:func:`ddmr_cli.report.figures.figure_tasks`); ``on_verdicts``: called with the verdicts in plain
     text as soon as they are known (:meth:`Report.answer`)."""
-    from ddmr_cli.progress import Ticker, bar
+    from ddmr_cli.progress import Ticker, bar, delay_since_start, interactive, status
 
     margin = Margin.parse(margin)
-    data = load(path)  # reading the jobs' tables: about 1 s for 72 jobs
+    # reading the jobs' tables (about 1 s for 72 jobs) said on a terminal, where it is cleared when done (a log gets
+    # no line for it: a report refused after it prints its one error line only)
+    with status("report: reading the jobs", progress and interactive(), delay=delay_since_start()):
+        data = load(path)
     out_dir = Path(out).expanduser().resolve() if out is not None else data.path / "report"
 
     def write(root: Path) -> Path:
         report = Report(data, root, margin, figures, final=out_dir, all_figures=all_figures, on_verdicts=on_verdicts)
         if figures:
             report.start_figures()  # the figure processes forked before the bar's thread starts
-        with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs") as b, Ticker(b):
+        with bar(report.steps(), "report", "steps", progress, postfix=f"{len(data.jobs)} jobs",
+                 delay=delay_since_start()) as b, Ticker(b):
             report.step = b.update
             return report.build()
 
