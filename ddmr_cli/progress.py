@@ -8,7 +8,8 @@ turns each refresh into one whole line, and refreshes at most every :data:`LOG_E
 
 Who shows what:
 
-- ``ddmr run`` (one job): a bar over the job's steps (:func:`ddmr_cli.job.execute`), and before the first step,
+- ``ddmr run`` (one job): a bar over the job's steps (:func:`ddmr_cli.job.execute`; on a terminal drawn once the
+  command has run :data:`DELAY` s, :func:`delay_since_start`), and before the first step,
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
   (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own;
@@ -208,10 +209,12 @@ def status(what: str, enabled: bool = True, stream: TextIO | None = None, **kwar
 
 class StepBar:
     """The engine's ``progress(steps_done, steps_total)`` callback as a bar over one job's ``total`` steps, drawn
-    from the start and redrawn every second (so the compile before the first chunk is not a frozen bar)."""
+    from the start and redrawn every second (so the compile before the first chunk is not a frozen bar). It is made
+    after ``ddmr run``'s imports and composition (about 1 s): on a terminal it is drawn once the process has run
+    :data:`DELAY` s (:func:`delay_since_start`), not :data:`DELAY` s after it is made."""
 
     def __init__(self, label: str, n_runs: int, total: int, enabled: bool = True) -> None:
-        self._bar = bar(total, f"{label} ({n_runs} runs)", "steps", enabled)
+        self._bar = bar(total, f"{label} ({n_runs} runs)", "steps", enabled, delay=delay_since_start())
         self._ticker = Ticker(self._bar)
 
     def __call__(self, done: int, total: int) -> None:

@@ -187,3 +187,17 @@ def test_a_report_shows_its_progress_at_once_on_a_terminal_after_a_long_start_up
     monkeypatch.setattr(sys, "stderr", log)
     build(tmp_path / "run", tmp_path / "rep_log", figures=False)
     assert "reading the jobs" not in log.getvalue()
+
+
+def test_a_runs_step_bar_on_a_terminal_is_drawn_at_once_when_the_command_has_run_a_while(monkeypatch):
+    """``ddmr run``'s bar is made after its imports and composition (about 1 s): on a terminal it is drawn when
+    made once the process has run DELAY s, so a 2 s run is not silent to its end; in a log it keeps its delay."""
+    monkeypatch.setattr(progress, "DELAY", 1.0)
+    _started(monkeypatch, 30.0)
+    for stream, drawn in ((_Tty(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        step_bar = progress.StepBar("smc_ndo_nno/paper_1", 50, 15000)
+        step_bar(3000, 15000)
+        shown = stream.getvalue()
+        step_bar.close()
+        assert ("smc_ndo_nno/paper_1 (50 runs)" in shown) is drawn, shown
