@@ -94,6 +94,14 @@ def _two_panels(plt):
     return fig
 
 
+def _draws(fig) -> list:
+    """The renderers of every draw of ``fig`` from now on (one entry per draw)."""
+    drawn = []
+    original_draw = fig.draw
+    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    return drawn
+
+
 def test_save_lays_out_once_and_draws_once_with_the_pixels_of_a_plain_tight_layout(tmp_path):
     """``save`` removes the placeholder engine ``tight_layout`` leaves, so ``savefig`` does not draw the whole figure
     once more without rendering: one draw per save, and the same pixels as ``tight_layout`` + ``savefig``."""
@@ -101,9 +109,7 @@ def test_save_lays_out_once_and_draws_once_with_the_pixels_of_a_plain_tight_layo
 
     plt = P.pyplot()
     fig = _two_panels(plt)
-    drawn = []
-    original_draw = fig.draw
-    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    drawn = _draws(fig)
     P.save(fig, tmp_path / "ours.png")
     assert len(drawn) == 1
     fig = _two_panels(plt)
@@ -141,18 +147,14 @@ def _offset_panel(plt, title: str):
 def test_a_title_running_into_its_axis_offset_text_is_lifted_over_it(tmp_path):
     plt = P.pyplot()
     fig, ax = _offset_panel(plt, "a long title that reaches the left edge of the axes")
-    drawn = []
-    original_draw = fig.draw
-    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    drawn = _draws(fig)
     P.save(fig, tmp_path / "lifted.png")
     offset = ax.yaxis.offsetText
     assert offset.get_visible() and offset.get_text()
     assert ax.title.get_window_extent().y0 >= offset.get_window_extent().y1 - 0.5  # pixels
     assert ax.title.get_position()[1] > 1.0 and len(drawn) >= 2  # lifted, then laid out and drawn again
     fig, ax = _offset_panel(plt, "short")  # clear of the offset text: not moved, drawn once
-    drawn.clear()
-    original_draw = fig.draw
-    fig.draw = lambda renderer: (drawn.append(renderer), original_draw(renderer))[1]
+    drawn = _draws(fig)
     P.save(fig, tmp_path / "short.png")
     assert len(drawn) == 1
     assert ax.title.get_position()[1] == 1.0  # the value set, not a computed one

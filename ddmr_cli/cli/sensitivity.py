@@ -80,7 +80,7 @@ def main(argv: Sequence[str]) -> int:
     try:
         with DirLock(out, name=STUDY_LOCK):
             return _study(out, stages, args)
-    except FaultError as exc:  # another `ddmr sensitivity` on OUT, or OUT cannot be made
+    except FaultError as exc:  # another `ddmr sensitivity` on OUT, OUT cannot be made, or its summary not written
         print(f"ddmr: error: {exc.path}: {exc.reason}", file=sys.stderr)
         return EXIT_FAILED
 
@@ -88,7 +88,7 @@ def main(argv: Sequence[str]) -> int:
 def _study(out: Path, stages: list[str], args) -> int:
     """The stages and the report of the study in ``out``, holding its lock."""
     from ddmr_cli.cli.run import cmd_run
-    from ddmr_cli.storage import io
+    from ddmr_cli.storage import io, jobdir
 
     summary_path = out / SUMMARY
     record = json.loads(summary_path.read_text()) if summary_path.is_file() else {"stages": {}}
@@ -103,9 +103,8 @@ def _study(out: Path, stages: list[str], args) -> int:
                                        "overrides": [*args.overrides, *extra], **_counts(out / stage)}
             try:  # atomically: a study killed or out of disk here keeps its last summary whole
                 io.write_text(summary_path, json.dumps(record, indent=2))
-            except OSError as exc:
-                print(f"ddmr: error: {exc.filename or summary_path}: {exc.strerror or exc}", file=sys.stderr)
-                return EXIT_FAILED
+            except OSError as exc:  # one error line, exit 1: main's, for every fault of the study dir
+                raise jobdir.fault(exc) from None
             if code == INTERRUPTED:  # Ctrl-C stops the study; the same command resumes it
                 print(f"ddmr: study interrupted in stage {stage}; run the same command again to resume",
                       file=sys.stderr)
