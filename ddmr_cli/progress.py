@@ -12,7 +12,10 @@ Who shows what:
   command has run :data:`DELAY` s, :func:`delay_since_start`), and before the first step,
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
-  (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own;
+  (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own; an Optuna session
+  (the sensitivity study's calibration search) a bar over its trials (:class:`TrialWatch`);
+- ``ddmr sensitivity``: each stage's sweep bar, the stage's results above it, and a :func:`status` line while it
+  writes the report;
 - ``ddmr report``: on a terminal a :func:`status` line while it reads the jobs, then a bar over the report's
   sections and figures, both drawn at once when the command has already run for :data:`DELAY` s
   (:func:`delay_since_start`), and the verdicts (:func:`say`) as soon as they are known, before the figures are
@@ -269,7 +272,8 @@ class SweepWatch:
     def __enter__(self) -> "SweepWatch":
         if self.enabled:
             self._pending = [p for p in self.paths if not p.is_file()]
-            self._bar = bar(len(self.paths), "sweep", "jobs", initial=len(self.paths) - len(self._pending))
+            self._bar = bar(len(self.paths), "sweep", "jobs", initial=len(self.paths) - len(self._pending),
+                            delay=delay_since_start())
             self._ticker = Ticker(self._bar, poll=self._poll)
         return self
 
@@ -285,5 +289,41 @@ class SweepWatch:
             self._bar.close()
 
 
-__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "bar", "compile_notice", "delay_since_start",
-           "each", "interactive", "quiet_sweep_logging", "status"]
+class TrialWatch:
+    """A bar over the ``total`` trials an Optuna session runs (the gain tuning, the study's calibration search),
+    advanced as trial dirs' ``marker`` files (``summary.json``) appear one or two levels below ``out_dir``: a trial's
+    dir is named from its sampled values, so the dirs are not known before the trials run. Files there before the
+    session (a resumed study's trials) are not counted. Polled and redrawn every second, as :class:`SweepWatch`."""
+
+    def __init__(self, out_dir: Path, total: int, marker: str, enabled: bool = True) -> None:
+        self.out_dir, self.total, self.marker = Path(out_dir), int(total), marker
+        self.enabled = enabled and self.total > 0
+        self._before = 0
+        self._seen = 0
+        self._bar: tqdm | None = None
+        self._ticker: Ticker | None = None
+
+    def _count(self) -> int:
+        return sum(1 for pattern in (f"*/{self.marker}", f"*/*/{self.marker}") for _ in self.out_dir.glob(pattern))
+
+    def __enter__(self) -> "TrialWatch":
+        if self.enabled:
+            self._before = self._count()
+            self._bar = bar(self.total, "trials", "trials", delay=delay_since_start())
+            self._ticker = Ticker(self._bar, poll=self._poll)
+        return self
+
+    def _poll(self) -> int:
+        seen = min(self.total, max(0, self._count() - self._before))
+        advanced, self._seen = seen - self._seen, max(seen, self._seen)
+        return max(0, advanced)
+
+    def __exit__(self, *exc) -> None:
+        if self._ticker is not None:
+            self._ticker.stop()
+            self._bar.update(self._poll())
+            self._bar.close()
+
+
+__all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "TrialWatch", "bar", "compile_notice",
+           "delay_since_start", "each", "interactive", "quiet_sweep_logging", "status"]

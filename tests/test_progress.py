@@ -82,6 +82,59 @@ def test_the_sweep_bar_counts_summaries_and_resumed_jobs(tmp_path, capsys):
     assert capsys.readouterr().err == ""  # over within progress.DELAY: never drawn
 
 
+def test_the_trial_bar_counts_the_trials_of_this_session_as_they_end(tmp_path):
+    """An Optuna session's bar: trial dirs are named from their sampled values (one or two levels below the sweep
+    dir), so it counts their marker files as they appear, not those of an earlier session, and never past its
+    total."""
+    old = tmp_path / "trials" / "old"
+    old.mkdir(parents=True)
+    (old / "trial.json").write_text("{}")  # an earlier session's trial
+    with progress.TrialWatch(tmp_path, 3, "trial.json") as watch:
+        assert watch._bar.n == 0 and watch._bar.total == 3
+        for path in (tmp_path / "trials" / "a", tmp_path / "trial-b"):
+            path.mkdir()
+            (path / "trial.json").write_text("{}")
+        (tmp_path / "trials" / "a" / "summary.json").write_text("{}")  # another file: not a trial's end
+        assert watch._poll() == 2 and watch._poll() == 0
+        watch._bar.n += 2
+        for name in ("c", "d"):  # a fourth trial counted in a session of three (a failed one rerun): held at 3
+            (tmp_path / "trials" / name).mkdir()
+            (tmp_path / "trials" / name / "trial.json").write_text("{}")
+    assert watch._bar.n == 3 and watch._bar.disable
+    assert not progress.TrialWatch(tmp_path, 0, "trial.json").enabled  # a session with no trial left: no bar
+
+
+def test_the_long_sessions_show_their_progress():
+    """The sensitivity study's stages and the gain tuning run with ``run.progress`` on: a bar over the stage's jobs
+    or the session's trials, instead of silence (a default study's stage runs 10-70 s, a tuning session minutes)."""
+    from ddmr_cli.config import compose_config
+
+    for preset in ("+experiment=sensitivity_morris", "+experiment=sensitivity_calibration", "+tune=smc_ndo"):
+        assert compose_config([preset]).run.progress is True, preset
+
+
+def test_a_study_says_it_writes_its_report(tmp_path, monkeypatch, capsys):
+    """``ddmr sensitivity`` writes its report for several seconds after its last stage: a status line says so
+    (here in a log: whole lines), and none with ``run.progress=false``."""
+    import time
+
+    from ddmr_cli.cli import run as run_module
+    from ddmr_cli.cli import sensitivity
+
+    monkeypatch.setattr(progress, "DELAY", 0.0)
+    monkeypatch.setattr(run_module, "cmd_run", lambda argv: 0)
+
+    def slow_report(out):
+        time.sleep(0.1)
+        return out / "report.md"
+
+    monkeypatch.setattr("ddmr_cli.report.sensitivity.write_report", slow_report)
+    assert sensitivity.main(["--out", str(tmp_path / "s"), "--stages", "oat"]) == 0
+    assert "ddmr sensitivity: writing the report (00:00 elapsed)" in capsys.readouterr().err
+    assert sensitivity.main(["--out", str(tmp_path / "q"), "--stages", "oat", "run.progress=false"]) == 0
+    assert "writing the report" not in capsys.readouterr().err
+
+
 def _fake_stepper(tmp_path):
     class Function:
         def __init__(self):

@@ -265,10 +265,14 @@ def test_quick_study_end_to_end(tmp_path):
     sweeper, warm-started from the lhs stage), the analyses and the report are written; the search is the same
     through another launcher, and resumes."""
     out = tmp_path / "study"
-    proc = run_ddmr(["sensitivity", "--out", str(out), "study=quick", "launcher=basic"], cwd=tmp_path)
+    proc = run_ddmr(["sensitivity", "--out", str(out), "study=quick", "launcher=basic"], cwd=tmp_path,
+                    env={"DDMR_PROGRESS_DELAY": "0"})  # every bar drawn, however fast the machine
     assert proc.returncode == 0, proc.stderr[-3000:]
     for stage in ("oat", "morris", "sobol", "map", "lhs", "calibration", "points"):
         assert (out / stage / "study.csv").is_file(), stage
+    # progress in a log: each stage's bar over its jobs, the search's over its trials, the report's status line
+    assert proc.stderr.count("sweep: 1/1 jobs (100 %)") == 6 and "trials: 4/4 trials (100 %)" in proc.stderr
+    assert "ddmr sensitivity: writing the report" in proc.stderr
     morris = pd.read_csv(out / "morris" / "morris.csv")
     assert set(morris["claim"]) == set(claims.CLAIM_IDS) and (morris["mu_star"] >= 0).all()
     sobol = pd.read_csv(out / "sobol" / "sobol.csv")

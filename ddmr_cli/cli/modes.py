@@ -99,7 +99,8 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
     largest, work = None, 0
     warned: list[str] = []
     shown = multirun and bool(base.run.get("progress", True))
-    for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown, leave=False):
+    for job in progress.each(jobs, len(jobs), "validating", "jobs", enabled=shown, leave=False,
+                             delay=progress.delay_since_start()):
         current = job["overrides"]
         try:
             cfg = compose(current) if multirun else base
@@ -243,6 +244,8 @@ class _OptunaStudy(Mode):
     """A mode whose session is an Optuna study stored in the sweep dir (:class:`ddmr_cli.study.tuning.Session`):
     planned read only, started under the dir's lock (the trials a killed session left RUNNING marked failed)."""
 
+    draws_bar = True
+
     def _prepare(self, base, overrides):
         """The planned :class:`~ddmr_cli.study.tuning.Session` (checks the study's settings first)."""
         raise NotImplementedError
@@ -255,6 +258,17 @@ class _OptunaStudy(Mode):
         super().before_launch(out_dir, jobs)
         self.session.start()  # under the lock
 
+    def _trial_marker(self) -> str:
+        """The file a trial's job writes when it ends."""
+        raise NotImplementedError
+
+    def watch(self, out_dir, jobs, enabled):
+        """A bar over the session's trials, advanced as their :meth:`_trial_marker` files appear
+        (:class:`ddmr_cli.progress.TrialWatch`)."""
+        from ddmr_cli.progress import TrialWatch
+
+        return TrialWatch(out_dir, self.session.budget - self.session.done, self._trial_marker(), enabled)
+
 
 class TuningStudy(_OptunaStudy):
     """A gain-tuning study (``+tune=<controller>``, docs/model.md §9): Optuna's trials through Hydra's sweeper,
@@ -264,6 +278,11 @@ class TuningStudy(_OptunaStudy):
         from ddmr_cli.study import tuning
 
         return tuning.prepare_study(base, overrides)
+
+    def _trial_marker(self):
+        from ddmr_cli.study.tuning import TRIAL_FILE
+
+        return TRIAL_FILE
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.study import tuning
@@ -278,6 +297,11 @@ class CalibrationSearch(_OptunaStudy):
         from ddmr_cli.study import search
 
         return search.prepare_search(base)
+
+    def _trial_marker(self):  # a trial is a study job
+        from ddmr_cli.storage.io import SUMMARY
+
+        return SUMMARY
 
     def finish(self, out_dir, jobs):
         from ddmr_cli.study import search

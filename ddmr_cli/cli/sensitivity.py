@@ -112,13 +112,30 @@ def _study(out: Path, stages: list[str], args) -> int:
             if code:
                 print(f"ddmr: stage {stage} failed (exit {code}); later stages still run", file=sys.stderr)
                 status = code
+    from ddmr_cli import progress
     from ddmr_cli.report.sensitivity import write_report
 
-    path = write_report(out)
+    with progress.status("ddmr sensitivity: writing the report", enabled=_progress(args.overrides)):
+        path = write_report(out)
     total = sum(s["wall_time"] for s in record["stages"].values())
     runs = sum(s.get("runs", 0) for s in record["stages"].values())
     print(f"ddmr sensitivity: {runs} runs, {total:.0f} s wall time; report written to {path}")
     return status
+
+
+def _progress(overrides: list[str]) -> bool:
+    """Whether the study shows its progress: ``run.progress`` as the stages compose it (the study's preset, then
+    the command line's overrides; the preset's alone where the overrides do not compose: every stage has then
+    refused them with its own error line)."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from ddmr_cli.config import compose_config
+
+    try:
+        return bool(compose_config(["+experiment=sensitivity", *overrides]).run.progress)
+    except (HydraException, OmegaConfBaseException, ValueError):
+        return bool(compose_config(["+experiment=sensitivity"]).run.progress)
 
 
 def _counts(stage_dir: Path) -> dict:

@@ -186,6 +186,7 @@ def start_stage(config: DictConfig) -> None:
 
 def end_stage(config: DictConfig) -> None:
     """A study stage's multirun ends: ``study.csv`` and the stage's analysis."""
+    from ddmr_cli.progress import say
     from ddmr_cli.study.analysis import analyse
 
     sweep_dir = Path(config.hydra.sweep.dir)
@@ -198,12 +199,12 @@ def end_stage(config: DictConfig) -> None:
     runs = int(sum(s.get("statistics", {}).get("runs", 0) or 0 for _, s in state.complete))
     reused = int(sum(s.get("statistics", {}).get("reused", 0) or 0 for _, s in state.complete))
     wall = sum(float(s.get("wall_time") or 0) for _, s in state.complete)
-    print(f"\nddmr study {config.study.stage}: {len(state.complete)} jobs complete, {len(state.failed)} failed, "
-          f"{len(state.missing)} missing; {len(rows)} samples, {runs} runs ({runs - reused} simulated, {reused} "
-          f"the numbers of an identical earlier run), {wall:.1f} s in jobs -> {sweep_dir}")
+    lines = [f"\nddmr study {config.study.stage}: {len(state.complete)} jobs complete, {len(state.failed)} failed, "
+             f"{len(state.missing)} missing; {len(rows)} samples, {runs} runs ({runs - reused} simulated, {reused} "
+             f"the numbers of an identical earlier run), {wall:.1f} s in jobs -> {sweep_dir}"]
     if not rows.empty and not state.missing and not state.failed:
-        for line in analyse(sweep_dir, config, rows):
-            print("  " + line)
+        lines += ["  " + line for line in analyse(sweep_dir, config, rows)]
+    say(lines)  # above the sweep's bar, which is still drawn until its next poll finds the last job
 
 
 __all__ = ["execute_study", "RunMemo", "simulate_sample", "sample_row", "collect", "start_stage", "end_stage"]
