@@ -12,7 +12,8 @@ Who shows what:
   command has run :data:`DELAY` s, :func:`delay_since_start`), and before the first step,
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
-  (:class:`SweepWatch`, whatever the launcher); the jobs of a sweep draw no bars of their own; an Optuna session
+  (:class:`SweepWatch`, whatever the launcher), then a :func:`status` line while the sweep's tables are written;
+  the jobs of a sweep draw no bars of their own; an Optuna session
   (the sensitivity study's calibration search) a bar over its trials (:class:`TrialWatch`);
 - ``ddmr sensitivity``: each stage's sweep bar, the stage's results above it, and a :func:`status` line while it
   writes the report;
@@ -204,7 +205,9 @@ def status(what: str, enabled: bool = True, stream: TextIO | None = None, **kwar
     """A line saying ``what`` is being done and for how long, for work without a count (one measurement of
     ``ddmr bench``): drawn after :data:`DELAY` s, its elapsed time redrawn every second on a terminal (every
     :data:`LOG_EVERY` s in a log) by a :class:`Ticker`, and cleared from a terminal when the work ends (what is
-    printed next is its result)."""
+    printed next is its result). Always on the cursor's line (``position=0``): a status follows a bar that closes
+    after it is made (a sweep's bar closes at its watch's next poll, after the sweep's callback has begun)."""
+    kwargs.setdefault("position", 0)
     with bar(None, what, enabled=enabled, stream=stream, bar_format=_STATUS_FORMAT, leave=False, **kwargs) as b, \
             Ticker(b):
         yield b

@@ -62,6 +62,21 @@ def test_a_status_says_what_is_measured_and_for_how_long_and_is_cleared_when_it_
     assert quiet.getvalue() == ""
 
 
+def test_a_status_made_while_a_bar_is_still_open_draws_on_the_cursors_line():
+    """A sweep's bar closes at its watch's next poll, after the sweep's callback has made its status line: the
+    status is drawn on the line the cursor is on (tqdm would otherwise give it the next free position: a line
+    below, reached by a newline and moved back up with an escape)."""
+    out = _Tty()
+    sweep_bar = progress.bar(2, "sweep", "jobs", stream=out, delay=0)
+    with progress.status("sweep: writing its tables", stream=out, delay=0):
+        sweep_bar.update(2)
+        sweep_bar.close()
+        drawn = len(out.getvalue())
+    status = out.getvalue()[drawn:]
+    assert "\x1b[A" not in out.getvalue() and "\n\rsweep: writing" not in out.getvalue()
+    assert status.endswith("\r")  # the status is cleared where it was drawn
+
+
 def test_progress_false_prints_nothing(capsys):
     with progress.bar(3, "sweep", "jobs", enabled=False) as b, progress.Ticker(b):
         b.update(3)
@@ -193,6 +208,7 @@ def test_a_sweep_shows_validation_and_job_progress_as_lines_in_a_log(tmp_path):
     assert shown.returncode == 0, shown.stderr
     assert "validating: 0/2 jobs" in shown.stderr  # validation's bar (leave=False: its last state is not kept)
     assert "sweep: 2/2 jobs (100 %)" in shown.stderr
+    assert "sweep: writing its tables (00:00 elapsed)" in shown.stderr  # the callback's status line
     assert "\r" not in shown.stderr
     quiet = _ddmr([*args[:-2], "run.progress=false", f"hydra.sweep.dir={tmp_path / 'q'}", "launcher=basic"],
                   tmp_path, delay=0)

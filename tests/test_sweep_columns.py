@@ -86,6 +86,27 @@ def test_aggregate_writes_the_swept_columns_in_every_table_and_the_summary(gain_
     assert "deviation_mae [m]" in out and "e_theta_mae [rad]" in out and "chattering [V/s]" in out
 
 
+def test_the_tables_are_written_inside_while_writing_and_the_summary_printed_after_it(gain_sweep, capsys):
+    """``aggregate``'s ``while_writing`` (the sweep callback's status line) is entered before the jobs are read and
+    left once every table is in place, before the summary is printed (a status line and the summary never mix)."""
+    import contextlib
+
+    seen = []
+
+    @contextlib.contextmanager
+    def writing():
+        seen.append([(gain_sweep / name).is_file() for name in (sweep.JOBS_CSV, sweep.SWEEP_METRICS_CSV)])
+        print("<writing>")
+        yield
+        seen.append([(gain_sweep / name).is_file() for name in (sweep.JOBS_CSV, sweep.SWEEP_METRICS_CSV)])
+        print("</writing>")
+
+    assert sweep.aggregate(gain_sweep, while_writing=writing).ok
+    assert seen == [[False, False], [True, True]]
+    out = capsys.readouterr().out
+    assert out.index("</writing>") < out.index("ddmr sweep: 3 complete")
+
+
 def test_pivot_of_load_sweep(gain_sweep):
     table = ddmr_cli.load_sweep(gain_sweep)
     pivot = table.pivot_table(index="controller.switching_gain", values="deviation_mae", aggfunc="mean")
