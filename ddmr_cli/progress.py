@@ -13,8 +13,8 @@ Who shows what:
   when the step loop must be compiled for this controller and call, :func:`compile_notice`'s line;
 - ``ddmr run -m``: a bar over the jobs as they are validated, then one over the jobs as their summaries appear
   (:class:`SweepWatch`, whatever the launcher), then a :func:`status` line while the sweep's tables are written;
-  the jobs of a sweep draw no bars of their own; an Optuna session
-  (the sensitivity study's calibration search) a bar over its trials (:class:`TrialWatch`);
+  the jobs of a sweep draw no bars of their own; an Optuna session (the gain tuning, the sensitivity study's
+  calibration search) a bar over its trials (:class:`TrialWatch`);
 - ``ddmr sensitivity``: each stage's sweep bar, the stage's results above it, and a :func:`status` line while it
   writes the report;
 - ``ddmr report``: on a terminal a :func:`status` line while it reads the jobs, then a bar over the report's
@@ -259,73 +259,86 @@ def quiet_sweep_logging(hydra_cfg) -> list[str]:
             if "console" in (hydra_cfg.get(node) or {}).get("handlers", {})]
 
 
-class SweepWatch:
-    """A bar over a sweep's jobs, advanced as their ``marker`` files (``summary.json``) appear (any launcher: the jobs may run
-    in worker processes or on other hosts sharing the file system); polled and redrawn every second, so the
-    elapsed time and the ETA move between jobs too. Jobs already complete when it starts (a resumed sweep) are
-    counted from the start, outside the rate."""
+class _FileWatch:
+    """A bar over work done in other processes, advanced as the files that mark each piece's end appear (any
+    launcher: the jobs may run in worker processes or on other hosts sharing the file system); polled and redrawn
+    every second by a :class:`Ticker`, so the elapsed time and the ETA move between pieces too. On a terminal it is
+    drawn once the command has run :data:`DELAY` s (:func:`delay_since_start`: it is made after the planning)."""
 
-    def __init__(self, out_dir: Path, job_dirs: list[str], marker: str, enabled: bool = True) -> None:
-        self.paths = [Path(out_dir) / d / marker for d in job_dirs]
-        self.enabled = enabled and bool(job_dirs)
-        self._pending: list[Path] = []
+    desc, unit = "", ""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
         self._bar: tqdm | None = None
         self._ticker: Ticker | None = None
 
-    def __enter__(self) -> "SweepWatch":
+    def _start(self) -> tuple[int, int]:
+        """``(total, done already)``, read when the watch starts."""
+        raise NotImplementedError
+
+    def _poll(self) -> int:
+        """How many more pieces have ended since the last poll."""
+        raise NotImplementedError
+
+    def __enter__(self):
         if self.enabled:
-            self._pending = [p for p in self.paths if not p.is_file()]
-            self._bar = bar(len(self.paths), "sweep", "jobs", initial=len(self.paths) - len(self._pending),
-                            delay=delay_since_start())
+            total, done = self._start()
+            self._bar = bar(total, self.desc, self.unit, initial=done, delay=delay_since_start())
             self._ticker = Ticker(self._bar, poll=self._poll)
         return self
+
+    def __exit__(self, *exc) -> None:
+        if self._ticker is not None:
+            self._ticker.stop()
+            self._bar.update(self._poll())
+            self._bar.close()
+
+
+class SweepWatch(_FileWatch):
+    """A bar over a sweep's jobs, advanced as their ``marker`` files (``summary.json``) appear. Jobs already
+    complete when it starts (a resumed sweep) are counted from the start, outside the rate."""
+
+    desc, unit = "sweep", "jobs"
+
+    def __init__(self, out_dir: Path, job_dirs: list[str], marker: str, enabled: bool = True) -> None:
+        super().__init__(enabled and bool(job_dirs))
+        self.paths = [Path(out_dir) / d / marker for d in job_dirs]
+        self._pending: list[Path] = []
+
+    def _start(self) -> tuple[int, int]:
+        self._pending = [p for p in self.paths if not p.is_file()]
+        return len(self.paths), len(self.paths) - len(self._pending)
 
     def _poll(self) -> int:
         before = len(self._pending)
         self._pending = [p for p in self._pending if not p.is_file()]
         return before - len(self._pending)
 
-    def __exit__(self, *exc) -> None:
-        if self._ticker is not None:
-            self._ticker.stop()
-            self._bar.update(self._poll())
-            self._bar.close()
 
-
-class TrialWatch:
+class TrialWatch(_FileWatch):
     """A bar over the ``total`` trials an Optuna session runs (the gain tuning, the study's calibration search),
-    advanced as trial dirs' ``marker`` files (``summary.json``) appear one or two levels below ``out_dir``: a trial's
-    dir is named from its sampled values, so the dirs are not known before the trials run. Files there before the
-    session (a resumed study's trials) are not counted. Polled and redrawn every second, as :class:`SweepWatch`."""
+    advanced as the trials' ``marker`` files appear one or two levels below ``out_dir``: a trial's dir is named from
+    its sampled values, so the dirs are not known before the trials run. Files there before the session (a resumed
+    study's trials) are not counted, and the count stops at ``total``."""
+
+    desc, unit = "trials", "trials"
 
     def __init__(self, out_dir: Path, total: int, marker: str, enabled: bool = True) -> None:
+        super().__init__(enabled and int(total) > 0)
         self.out_dir, self.total, self.marker = Path(out_dir), int(total), marker
-        self.enabled = enabled and self.total > 0
-        self._before = 0
-        self._seen = 0
-        self._bar: tqdm | None = None
-        self._ticker: Ticker | None = None
+        self._before = self._seen = 0
 
     def _count(self) -> int:
         return sum(1 for pattern in (f"*/{self.marker}", f"*/*/{self.marker}") for _ in self.out_dir.glob(pattern))
 
-    def __enter__(self) -> "TrialWatch":
-        if self.enabled:
-            self._before = self._count()
-            self._bar = bar(self.total, "trials", "trials", delay=delay_since_start())
-            self._ticker = Ticker(self._bar, poll=self._poll)
-        return self
+    def _start(self) -> tuple[int, int]:
+        self._before = self._count()
+        return self.total, 0
 
     def _poll(self) -> int:
         seen = min(self.total, max(0, self._count() - self._before))
         advanced, self._seen = seen - self._seen, max(seen, self._seen)
         return max(0, advanced)
-
-    def __exit__(self, *exc) -> None:
-        if self._ticker is not None:
-            self._ticker.stop()
-            self._bar.update(self._poll())
-            self._bar.close()
 
 
 __all__ = ["DELAY", "LOG_EVERY", "Silent", "SweepWatch", "StepBar", "Ticker", "TrialWatch", "bar", "compile_notice",
