@@ -148,6 +148,11 @@ def test_a_study_says_it_writes_its_report(tmp_path, monkeypatch, capsys):
     assert "ddmr sensitivity: writing the report (00:00 elapsed)" in capsys.readouterr().err
     assert sensitivity.main(["--out", str(tmp_path / "q"), "--stages", "oat", "run.progress=false"]) == 0
     assert "writing the report" not in capsys.readouterr().err
+    # overrides that do not compose: every stage refused them (exit 2, its own error line); the report's line
+    # follows the study's preset, and the study ends with the stages' status, not a traceback
+    monkeypatch.setattr(run_module, "cmd_run", lambda argv: 2)
+    assert sensitivity.main(["--out", str(tmp_path / "b"), "--stages", "oat", "no_such_key=1"]) == 2
+    assert "writing the report (00:00 elapsed)" in capsys.readouterr().err
 
 
 def _fake_stepper(tmp_path):
