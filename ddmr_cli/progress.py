@@ -31,6 +31,7 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Callable, Iterable, TextIO
 
@@ -143,6 +144,7 @@ def say(lines: Iterable[str], stream: TextIO | None = None) -> None:
     """Lines of a result on ``stream`` (default stdout) while a bar may be drawn on stderr: tqdm clears the bar
     on the terminal, writes the lines and draws the bar again below them."""
     stream = sys.stdout if stream is None else stream
+    _settle()
     tqdm.write("\n".join(lines), file=stream)  # one clear and redraw of the bar for all of them
     stream.flush()
 
@@ -165,6 +167,7 @@ class Ticker:
         self.bar, self.poll = b, poll
         self.every = getattr(b, "ddmr_every", 1.0)
         self._stop = threading.Event()
+        self._lock = threading.Lock()
         self._thread = None
         if not b.disable:  # a silent bar (run.progress=false) needs no thread
             self._thread = threading.Thread(target=self._run, name="ddmr-progress", daemon=True)
@@ -176,8 +179,13 @@ class Ticker:
             return False
         return b.last_print_t <= b.start_t or time.time() - b.last_print_t >= self.every
 
-    def _run(self) -> None:
-        while not self._stop.wait(1.0):
+    def tick(self) -> bool:
+        """One round: advance the bar by ``poll()``, redraw it when due, and close it once it is full (before what
+        follows is printed: a sweep's summary). True once the bar is closed. The thread runs one a second; a
+        watch's :meth:`_FileWatch.settle` runs one at once, under the same lock."""
+        with self._lock:
+            if self.bar.disable:  # closed by an earlier round
+                return True
             advanced = self.poll() if self.poll is not None else 0
             if advanced:
                 self.bar.n += advanced  # counted now, drawn when due (tqdm's update would wait for mininterval)
@@ -185,7 +193,13 @@ class Ticker:
                 self.bar.refresh()
                 self.bar.last_print_t = time.time()  # tqdm's record of its last draw (refresh leaves it)
             if self.poll is not None and self.bar.total is not None and self.bar.n >= self.bar.total:
-                self.bar.close()  # before what follows is printed (a sweep's summary)
+                self.bar.close()
+                return True
+            return False
+
+    def _run(self) -> None:
+        while not self._stop.wait(1.0):
+            if self.tick():
                 return
 
     def stop(self) -> None:
@@ -205,9 +219,9 @@ def status(what: str, enabled: bool = True, stream: TextIO | None = None, **kwar
     """A line saying ``what`` is being done and for how long, for work without a count (one measurement of
     ``ddmr bench``): drawn after :data:`DELAY` s, its elapsed time redrawn every second on a terminal (every
     :data:`LOG_EVERY` s in a log) by a :class:`Ticker`, and cleared from a terminal when the work ends (what is
-    printed next is its result). Always on the cursor's line (``position=0``): a status follows a bar that closes
-    after it is made (a sweep's bar closes at its watch's next poll, after the sweep's callback has begun)."""
-    kwargs.setdefault("position", 0)
+    printed next is its result). A watch's bar whose work has all ended is closed first (:func:`_settle`), so that
+    the status takes the cursor's line, not the one below a bar about to close."""
+    _settle()
     with bar(None, what, enabled=enabled, stream=stream, bar_format=_STATUS_FORMAT, leave=False, **kwargs) as b, \
             Ticker(b):
         yield b
@@ -259,6 +273,21 @@ def quiet_sweep_logging(hydra_cfg) -> list[str]:
             if "console" in (hydra_cfg.get(node) or {}).get("handlers", {})]
 
 
+#: the watch (:class:`SweepWatch`, :class:`TrialWatch`) drawing its bar in this context, if any: :func:`say` and
+#: :func:`status` settle it first (:func:`_settle`)
+WATCHING: ContextVar["_FileWatch | None"] = ContextVar("ddmr_watching", default=None)
+
+
+def _settle() -> None:
+    """Before a result or a status line is printed while a watch draws its bar: count what has ended now, and close
+    the bar if everything has. A sweep's callback prints its summary as soon as Hydra's launcher returns, that is,
+    when every job has ended but before the watch's next once-a-second poll; settled, the bar ends at 100 % above
+    the summary, not below it."""
+    watch = WATCHING.get()
+    if watch is not None:
+        watch.settle()
+
+
 class _FileWatch:
     """A bar over work done in other processes, advanced as the files that mark each piece's end appear (any
     launcher: the jobs may run in worker processes or on other hosts sharing the file system); polled and redrawn
@@ -271,6 +300,7 @@ class _FileWatch:
         self.enabled = enabled
         self._bar: tqdm | None = None
         self._ticker: Ticker | None = None
+        self._token = None
 
     def _start(self) -> tuple[int, int]:
         """``(total, done already)``, read when the watch starts."""
@@ -280,17 +310,26 @@ class _FileWatch:
         """How many more pieces have ended since the last poll."""
         raise NotImplementedError
 
+    def settle(self) -> None:
+        """Count what has ended now, and close the bar if everything has (:func:`_settle`)."""
+        if self._ticker is not None:
+            self._ticker.tick()
+
     def __enter__(self):
         if self.enabled:
             total, done = self._start()
             self._bar = bar(total, self.desc, self.unit, initial=done, delay=delay_since_start())
             self._ticker = Ticker(self._bar, poll=self._poll)
+            self._token = WATCHING.set(self)
         return self
 
     def __exit__(self, *exc) -> None:
+        if self._token is not None:
+            WATCHING.reset(self._token)
+            self._token = None
         if self._ticker is not None:
             self._ticker.stop()
-            self._bar.update(self._poll())
+            self._ticker.tick()  # the last count; closes the bar if its work has all ended
             self._bar.close()
 
 

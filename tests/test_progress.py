@@ -62,19 +62,29 @@ def test_a_status_says_what_is_measured_and_for_how_long_and_is_cleared_when_it_
     assert quiet.getvalue() == ""
 
 
-def test_a_status_made_while_a_bar_is_still_open_draws_on_the_cursors_line():
-    """A sweep's bar closes at its watch's next poll, after the sweep's callback has made its status line: the
-    status is drawn on the line the cursor is on (tqdm would otherwise give it the next free position: a line
-    below, reached by a newline and moved back up with an escape)."""
+def test_at_a_sweeps_end_its_bar_closes_before_the_results_and_the_status_line(tmp_path, monkeypatch):
+    """Hydra's launcher returns when every job has ended, and the sweep's callback prints at once, before the
+    watch's once-a-second poll: the watch is settled first, so its bar ends at 2/2 above the results, and the
+    tables' status line takes the cursor's line (not the one below the bar, reached by a newline and a cursor-up
+    escape)."""
+    monkeypatch.setattr(progress, "DELAY", 0.0)
+    tty = _Tty()
+    monkeypatch.setattr(sys, "stderr", tty)
     out = _Tty()
-    sweep_bar = progress.bar(2, "sweep", "jobs", stream=out, delay=0)
-    with progress.status("sweep: writing its tables", stream=out, delay=0):
-        sweep_bar.update(2)
-        sweep_bar.close()
-        drawn = len(out.getvalue())
-    status = out.getvalue()[drawn:]
-    assert "\x1b[A" not in out.getvalue() and "\n\rsweep: writing" not in out.getvalue()
-    assert status.endswith("\r")  # the status is cleared where it was drawn
+    dirs = ["a", "b"]
+    for d in dirs:
+        (tmp_path / d).mkdir()
+    with progress.SweepWatch(tmp_path, dirs, "summary.json"):
+        for d in dirs:
+            (tmp_path / d / "summary.json").write_text("{}")
+        progress.say(["ddmr study morris: 2 jobs complete"], stream=out)
+        closed = tty.getvalue()
+        with progress.status("sweep: writing its tables"):
+            pass
+    assert re.search(r"2/2 \[[^\r]*\]\n$", closed), closed[-200:]  # the bar's last state, ended by its newline
+    assert out.getvalue() == "ddmr study morris: 2 jobs complete\n"  # no bar redrawn below the results
+    status = tty.getvalue()[len(closed):]
+    assert status.startswith("\rsweep: writing its tables") and "\x1b[A" not in status and "\n" not in status
 
 
 def test_progress_false_prints_nothing(capsys):
