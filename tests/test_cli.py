@@ -343,6 +343,18 @@ def test_bench_times_hydras_own_work_per_job():
     assert 0 < low <= median < 10_000
 
 
+def test_bench_composes_a_commands_jobs_ahead_into_the_disk_cache_it_reads(tmp_path, monkeypatch):
+    """The bench times its commands warm: their jobs are composed once before, untimed, into ddmr's disk cache of
+    compositions (one per set of group choices), which the timed process then reads. table4 has 8 such sets."""
+    from ddmr_cli.cli.bench import compose_ahead
+
+    monkeypatch.setenv("DDMR_CACHE_DIR", str(tmp_path / "cache"))
+    seconds = compose_ahead(["-m", "+experiment=table4", "run.n_runs=2", "simulation.duration=2",
+                             f"hydra.sweep.dir={tmp_path / 'sweep'}", "run.progress=false"])
+    assert seconds > 0 and not (tmp_path / "sweep").exists()  # planned only: nothing written where it would run
+    assert len(list((tmp_path / "cache" / "skeletons").iterdir())) >= 8
+
+
 def test_the_program_and_the_task_function_collect_the_youngest_generation_less_often(monkeypatch):
     """The ddmr program and Hydra's task function (what a sweep's worker runs) raise the youngest generation's
     threshold; the Python API leaves the interpreter's alone."""
