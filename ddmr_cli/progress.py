@@ -141,8 +141,9 @@ def bar(total: int | float | None, desc: str, unit: str = "it", enabled: bool = 
 
 
 def say(lines: Iterable[str], stream: TextIO | None = None) -> None:
-    """Lines of a result on ``stream`` (default stdout) while a bar may be drawn on stderr: tqdm clears the bar
-    on the terminal, writes the lines and draws the bar again below them."""
+    """Lines of a result on ``stream`` (default stdout) while a bar may be drawn on stderr: a watch whose work has
+    all ended is closed first (:func:`_settle`); a bar still going on is cleared by tqdm, the lines written, and
+    the bar drawn again below them."""
     stream = sys.stdout if stream is None else stream
     _settle()
     tqdm.write("\n".join(lines), file=stream)  # one clear and redraw of the bar for all of them

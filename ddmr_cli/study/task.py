@@ -204,7 +204,7 @@ def end_stage(config: DictConfig) -> None:
              f"the numbers of an identical earlier run), {wall:.1f} s in jobs -> {sweep_dir}"]
     if not rows.empty and not state.missing and not state.failed:
         lines += ["  " + line for line in analyse(sweep_dir, config, rows)]
-    say(lines)  # above the sweep's bar, which is still drawn until its next poll finds the last job
+    say(lines)  # after the sweep's bar, which say() closes first once every job has ended
 
 
 __all__ = ["execute_study", "RunMemo", "simulate_sample", "sample_row", "collect", "start_stage", "end_stage"]
