@@ -1,21 +1,23 @@
 """A warm kernel cache runs exactly the code a cold one compiles (issue 31; ddmr_cli/engine/kernels.py).
 
 The mechanism: the compiled step loop's on-disk copy was named after the controller's law module and state layout
-only, so every other argument type (the run record, whose delay line's length depends on ``actuator.delay``; the
-sensor's state; the World) shared one copy, and numba's index beside it collected one entry per signature (16
+only, so every other argument type (the run record, whose delay line's length then depended on ``actuator.delay``;
+the sensor's state; the World) shared one copy, and numba's index beside it collected one entry per signature (16
 after ordinary use). numba's index is not safe against two processes saving different signatures of one function
 at once: both read it, both choose data file 1, and the index can end up naming one signature while the file
 holds the other's code; the next process running that layout loads the other layout's code (``TypeError: can't
 unbox array`` where the record sizes differ; where they agree it would run). Two sweep workers compiling one
-controller for two delays do that. The copy's name now holds the call's complete argument types, so each copy's
-index holds one signature, and what numba hands back is checked against the call before the first step.
+controller for two delays did that. The copy's name now holds the call's complete argument types, so each copy's
+index holds one signature, and what numba hands back is checked against the call before the first step. Since
+the delay line left the run record (an array beside it: its length is not its type), every delay runs one loop;
+two state layouts of one law module (SMC's and SMC-NDO's records) are what two workers compile at once now.
 
-Tests: the race made deterministic; a swapped entry named and recompiled; warm numbers equal cold ones bit for
-bit, across processes, in mixed orders and in a reused joblib worker (fast: pid x 2 delays + paper_1; slow: every
-controller preset x 6 realism points x both scenarios, 144 jobs). The cold numbers come from the two processes that
-fill the cache, each compiling every loop it runs (checked by numba's cache counters), so each signature is
-compiled once: the 144-job matrix took 705 s of the suite when a separate cold pass compiled everything again,
-261 s alone now on this 2-core machine.
+Tests: the race made deterministic; a swapped entry named and recompiled; one loop for every delay; warm numbers
+equal cold ones bit for bit, across processes, in mixed orders and in a reused joblib worker (fast: pid x 3
+delays; slow: every controller preset x 6 realism points x both scenarios, 144 jobs). The cold numbers come from
+the two processes that fill the cache, each compiling every loop it runs (checked by numba's cache counters), so
+each signature is compiled once: the 144-job matrix took 705 s of the suite when a separate cold pass compiled
+everything again, 261-313 s when each delay compiled its own loop.
 """
 
 from __future__ import annotations
@@ -75,7 +77,7 @@ _SCRIPT = textwrap.dedent("""
 """)
 
 
-#: one process of two that compile the same controller for two delays into one cache at once, made to save
+#: one process of two that compile one law module for two state layouts into one cache at once, made to save
 #: in the one order numba's index does not survive (see test_two_processes_saving_at_once_...)
 _RACE = textwrap.dedent("""
     import os, sys, time
@@ -116,8 +118,7 @@ _RACE = textwrap.dedent("""
     caching.IndexDataCacheFile._save_index = hooked_index
     caching.IndexDataCacheFile._save_data = hooked_data
     from ddmr_cli import paper_simulation, simulate
-    simulate(paper_simulation("controller=pid", "scenario=paper_2", "simulation.duration=0.02",
-                              f"+realism={sys.argv[3]}"), [3])
+    simulate(paper_simulation(f"controller={sys.argv[3]}", "scenario=paper_2", "simulation.duration=0.02"), [3])
 """)
 
 
@@ -168,28 +169,30 @@ def test_two_processes_saving_at_once_keep_each_layouts_code_apart(tmp_path):
     """The mechanism of issue 31, made deterministic. numba's index is not safe against two processes that save
     different signatures of one function at once: each reads the index, both choose data file 1, and in the
     order forced here the index ends up naming b's signature while data file 1 holds a's code. The next process
-    that runs b's layout loads a's code (``TypeError: can't unbox array``: the run record's size differs; where
-    the sizes agree it would run). Two sweep workers compiling one controller for two delays do just that. With
-    one signature per copy, the two processes save to two files and nothing is shared."""
+    that runs b's layout loads a's code (``TypeError: can't unbox array``: the record's size differs; where the
+    sizes agree it would run). Two sweep workers compiling one law module for two state layouts (SMC's and
+    SMC-NDO's records; two delays, when the delay line was in the run record) do just that. With one signature
+    per copy, the two processes save to two files and nothing is shared."""
     sync, cache = tmp_path / "sync", tmp_path / "warm"
     sync.mkdir()
     script = tmp_path / "race.py"
     script.write_text(_RACE)
     env = {**os.environ, "DDMR_CACHE_DIR": str(cache)}
-    racers = [subprocess.Popen([sys.executable, str(script), str(sync), role, realism], env=env,
+    racers = [subprocess.Popen([sys.executable, str(script), str(sync), role, controller], env=env,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-              for role, realism in (("a", "delay_2ms"), ("b", "delay_5ms"))]
+              for role, controller in (("a", "smc"), ("b", "smc_ndo"))]
     for racer in racers:
         _, err = racer.communicate(timeout=600)
         assert racer.returncode == 0, err[-3000:]
-    job = "pid:paper_2:delay_5ms"
+    assert len(_entries_per_copy(cache)) == 2  # two layouts of one module: two copies
+    job = "smc_ndo:paper_2:-"
     assert _run(cache, job) == _run(tmp_path / "cold", job)
 
 
 def test_a_cache_entry_compiled_for_another_call_is_named_and_recompiled(tmp_path):
     """Two copies' compiled code swapped on disk (what the race above left behind): each load is caught before a
     step, named on stderr, deleted and recompiled, and the numbers are the cold ones."""
-    cache, jobs = tmp_path / "warm", ["pid:paper_2:delay_2ms", "pid:paper_2:delay_5ms"]
+    cache, jobs = tmp_path / "warm", ["smc:paper_2:-", "smc_ndo:paper_2:-"]
     cold = _run(cache, *jobs)
     one, other = sorted((cache / "kernels" / "__pycache__").glob("ddmr_stepper_*.run_chunk-*.1.nbc"))
     one_bytes, other_bytes = one.read_bytes(), other.read_bytes()
@@ -201,9 +204,19 @@ def test_a_cache_entry_compiled_for_another_call_is_named_and_recompiled(tmp_pat
     assert _run(cache, *jobs[::-1], log=log) == cold and "recompiling" not in log[1]  # the new entries load
 
 
-def test_a_warm_cache_gives_each_actuator_delay_its_own_compiled_loop(tmp_path):
-    """Two delays of one controller (two run-record layouts) in one cache: each its own copy, cold numbers."""
-    _check(tmp_path, (["pid:paper_2:delay_2ms", "pid:paper_1:-"], ["pid:paper_2:delay_5ms"]))
+def test_one_compiled_loop_serves_every_actuator_delay(tmp_path):
+    """The delay line is an array beside the run record, so its length is not part of the loop's type: a process
+    running three delays compiles one loop; a loop compiled first for another delay gives a delay's numbers bit
+    for bit (against a process that compiled for that delay alone); a later process loads it and compiles
+    nothing. The delays change the numbers (the line is used)."""
+    jobs, counts = ["pid:paper_2:delay_5ms", "pid:paper_2:-", "pid:paper_2:delay_2ms"], []
+    alone = _run(tmp_path / "alone", jobs[0], counts=counts)  # compiled for the 5 ms line (6 rows)
+    first_ideal = _run(tmp_path / "warm", *jobs[1:], jobs[0], counts=counts)  # compiled for 1 row, then 3, 6
+    again = _run(tmp_path / "warm", *jobs[::-1], counts=counts)
+    assert counts == [(0, 1), (0, 1), (1, 0)], counts
+    assert first_ideal[jobs[0]] == alone[jobs[0]]
+    assert again == first_ideal
+    assert len({tuple(values) for values in first_ideal.values()}) == 3, first_ideal
 
 
 #: the realism points of the full matrix: ideal, a delay, a control rate, an encoder, speed noise, and all at once

@@ -16,16 +16,18 @@ The copy's file name is its identity: a hash of everything it was compiled for (
   controller's module may live outside the package (a user's controller). numba's own cache does not notice an
   edit in a callee's file; an edit in one controller's module recompiles that controller's loop only;
 - the complete type of every argument of the call (:func:`call_identity`): every record layout it touches (the
-  run record with the sensor's and the actuator's state, whose delay line's length depends on the delay; the
-  controller's state; the metric accumulators), the World, plant and parameter tuples field by field, every
-  array's dtype, rank and layout;
+  run record with the sensor's and the actuator's state; the controller's state, whose network's size is a
+  field's shape; the metric accumulators), the World, plant and parameter tuples field by field, every array's
+  dtype, rank and layout (an array's sizes are not its type: the actuator's delay lines, one array beside the
+  run records, serve every delay with one loop);
 - the Python, numba and llvmlite versions and the CPU target numba compiles for.
 
 So each copy's numba index holds exactly one compiled signature. numba's index alone is not enough: it is not
 safe against two processes saving different signatures of one function at once (both read the index, both
 choose data file 1, and the index can end up naming one signature while the data file holds the other's code).
-Two sweep workers compiling one controller for two actuator delays did that, and the next process running one
-of the delays loaded the other's code (issue 31, tests/test_kernel_cache.py; before that, SMC-NDO's and
+Two sweep workers compiling one controller for two actuator delays did that (the delay line was then a field
+of the run record), and the next process running one of the delays loaded the other's code (issue 31,
+tests/test_kernel_cache.py; before that, SMC-NDO's and
 SMC-NDO-NNO's state records, tests/test_engine.py). With one signature per copy, the processes that save into
 one copy save the same code.
 

@@ -29,7 +29,7 @@ from ddmr_cli.model.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coeffic
 from ddmr_cli.engine.results import SimulationResult
 from ddmr_cli.engine.series import series_channels
 from ddmr_cli.errors import ConfigError
-from ddmr_cli.model.actuator import Actuator, actuator_fields
+from ddmr_cli.model.actuator import ACTUATOR_FIELDS, Actuator, delay_lines
 from ddmr_cli.model.kinematics import inverse
 from ddmr_cli.model.robot import NominalModel, Robot
 from ddmr_cli.model.scenario import Scenario
@@ -295,6 +295,7 @@ class _Batch:
     plant: object  # the wheel plant's parameters (ddmr_cli.model.robot.Plant): its motor constants serve both kinds
     params: object
     runs: np.ndarray
+    lines: np.ndarray  # every run's actuator delay line (n_runs, delay_steps + 1, 2)
     controller_state: np.ndarray
     sums: np.ndarray
     accumulators: np.ndarray
@@ -345,7 +346,7 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, threads: int, progre
     try:
         with np.errstate(all="ignore"):
             for k0, n, xi, band_buffer, first, end in b.chunks(n_steps):
-                args = (k0, n, b.world, b.plant, b.params, b.runs, b.controller_state, xi, b.xs, b.sums,
+                args = (k0, n, b.world, b.plant, b.params, b.runs, b.lines, b.controller_state, xi, b.xs, b.sums,
                         b.accumulators, b.series, b.slot, band_buffer, first)
                 if loop is None:
                     loop = compiled_run_chunk(law_module, args + (0, n_runs), compiling)
@@ -389,7 +390,8 @@ def _run_external(b: _Batch, law_module: str, plant: ExternalPlant, seeds: list[
                 b.draw(n, xi, (0, n_runs))
                 for j in range(n):
                     k = k0 + j
-                    control_args = (k, j, b.world, b.plant, b.params, runs, b.controller_state, xi, b.xs, step_out)
+                    control_args = (k, j, b.world, b.plant, b.params, runs, b.lines, b.controller_state, xi, b.xs,
+                                    step_out)
                     if control is None:
                         control, account = compiled_external_step(law_module, control_args,
                                                                   _account_args(b, k, step_out, band_buffer, first,
@@ -471,8 +473,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     noise = NoiseStreams(seeds)
     sensor_noise = SensorNoise(seeds, len(NOISE_CHANNELS)) if world.sensor.noisy else None
     xs = np.zeros((n_runs, 1, len(NOISE_CHANNELS)))
-    fields = RUN_FIELDS + HOLD_FIELDS + SENSOR_FIELDS + actuator_fields(world.actuator.delay_steps)
-    runs = np.zeros(n_runs, dtype=np.dtype(fields))
+    runs = np.zeros(n_runs, dtype=np.dtype(RUN_FIELDS + HOLD_FIELDS + SENSOR_FIELDS + ACTUATOR_FIELDS))
     runs["x"], runs["y"], runs["theta"] = (float(v) for v in sim.initial_pose)
     runs["w"] = _initial_wheel_speeds(sim)
     runs["noise"] = noise.initial_state()
@@ -488,8 +489,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
                           + (8 * len(NOISE_CHANNELS) if sensor_noise is not None else 0))
     chunk = chunk_steps(bytes_per_run_step, n_runs)
     plant = sim.robot.plant()
-    batch = _Batch(world, plant, params, runs, controller_state, acc.sums, accumulators, series, slot, noise,
-                   sensor_noise, xs, band_acc, chunk)
+    batch = _Batch(world, plant, params, runs, delay_lines(n_runs, world.actuator.delay_steps), controller_state,
+                   acc.sums, accumulators, series, slot, noise, sensor_noise, xs, band_acc, chunk)
     if sim.plant is None:
         _run_compiled(batch, controller.laws.__name__, n_steps, threads, progress, compiling)
     else:

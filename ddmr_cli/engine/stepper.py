@@ -41,24 +41,26 @@ from ddmr_cli.model.scenario import damping_scale
 from ddmr_cli.model.terrain import zone_of
 
 @law
-def run_chunk(k0, n_steps, world, plant, params, runs, controller_state, xi, xs, sums, accumulators, series,
+def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, xi, xs, sums, accumulators, series,
               series_slot, bands, band_first, first_run, end_run):
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; ``xi[r, j]`` are
     run r's standard normals, ``xs[r, j]`` its sensor normals (``xs`` is a dummy unless the sensor is noisy).
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
-    ``runs``, ``controller_state`` and ``accumulators`` (one record per run) are updated in place; kept runs
+    ``runs``, ``controller_state`` and ``accumulators`` (one record per run) and ``lines`` (each run's actuator
+    delay line, :func:`~ddmr_cli.model.actuator.delay_lines`) are updated in place; kept runs
     (``series_slot[r] >= 0``) are recorded into ``series[slot, k]``, and every run's band channels on the grid
     into ``bands[r, k // world.band_stride - band_first]`` (when ``world.bands``). Compiled, it releases the GIL,
     so threads can advance disjoint blocks of runs at once.
     """
     for r in range(first_run, end_run):
-        run_steps(k0, n_steps, world, plant, params, r, runs[r], controller_state[r], xi, xs, sums, accumulators[r],
-                  series, series_slot[r], bands, band_first)
+        run_steps(k0, n_steps, world, plant, params, r, runs[r], lines[r], controller_state[r], xi, xs, sums,
+                  accumulators[r], series, series_slot[r], bands, band_first)
 
 
 @law
-def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, series, slot, bands, band_first):
+def run_steps(k0, n_steps, world, plant, params, r, run, line, st, xi, xs, sums, acc, series, slot, bands,
+              band_first):
     """One run's steps ``k0 .. k0 + n_steps - 1`` (the loop the module docstring describes)."""
     sen, act, m = world.sensor, world.actuator, world.control_steps
     if k0 == 0:
@@ -110,10 +112,10 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
             controller_estimates(params, st, mw_R, mw_L, us_R, us_L)
             controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
             if k == 0:
-                actuator.start(act, run, us_R, us_L)
+                actuator.start(act, run, line, us_R, us_L)
             kc += 1
         # the motor's voltage: the held command, delayed and lagged (§10)
-        u_R, u_L = actuator.apply(act, run, k, us_R, us_L)
+        u_R, u_L = actuator.apply(act, run, line, k, us_R, us_L)
         # this step's disturbances, held over it (5)
         n_R = ou_step(world.ou_a[0], world.ou_b[0], n_R, xi[r, j, 0])
         n_L = ou_step(world.ou_a[1], world.ou_b[1], n_L, xi[r, j, 1])
@@ -175,21 +177,21 @@ def run_steps(k0, n_steps, world, plant, params, r, run, st, xi, xs, sums, acc, 
 # holds the two orchestrations to one another: the wheel plant stepped from Python matches run_steps.
 
 @law
-def external_control(k, j, world, plant, params, runs, controller_state, xi, xs, step_out):
+def external_control(k, j, world, plant, params, runs, lines, controller_state, xi, xs, step_out):
     """Step ``k`` (the ``j``-th of its chunk) of every run up to the plant's step: the control instant when it is
     one, the motor's voltage and the step's disturbances, from the true state the run record holds (the plant's,
     written by :func:`external_account`). Writes ``step_out[r] = (u_R, u_L, b, rough, zone, phase)`` for the
     plant's step and the accounting after it."""
     sen, m = world.sensor, world.control_steps
     for r in range(runs.shape[0]):
-        run, st = runs[r], controller_state[r]
+        run, line, st = runs[r], lines[r], controller_state[r]
         x, y, theta, dist, w_R, w_L = run["x"], run["y"], run["theta"], run["distance"], run["w"][0], run["w"][1]
         if k == 0:
             controller_start(params, st, w_R, w_L)
             sensor.start(sen, run, w_R, w_L)
         if k % m == 0:
-            external_control_instant(world, plant, params, run, st, k, xs, r, j, x, y, theta, w_R, w_L)
-        u_R, u_L = actuator.apply(world.actuator, run, k, run["u_sent"][0], run["u_sent"][1])
+            external_control_instant(world, plant, params, run, line, st, k, xs, r, j, x, y, theta, w_R, w_L)
+        u_R, u_L = actuator.apply(world.actuator, run, line, k, run["u_sent"][0], run["u_sent"][1])
         # this step's disturbances (5): the roughness is the ground's, scenario 2's damping scale acts on the motor
         n_R = ou_step(world.ou_a[0], world.ou_b[0], run["noise"][0], xi[r, j, 0])
         n_L = ou_step(world.ou_a[1], world.ou_b[1], run["noise"][1], xi[r, j, 1])
@@ -246,7 +248,7 @@ def external_account(k, world, plant, runs, controller_state, step_out, d, x1, y
 
 
 @law
-def external_control_instant(world, plant, params, run, st, k, xs, r, j, x, y, theta, w_R, w_L):
+def external_control_instant(world, plant, params, run, line, st, k, xs, r, j, x, y, theta, w_R, w_L):
     """The control instant of :func:`run_steps` at plant step ``k`` on a run record: the sensor, the outer loop
     (3), inverse kinematics (4)-(5), the wheel controller (6), the driver's limit and PWM, the estimates and the
     update law, the holds written back to the record."""
@@ -273,7 +275,7 @@ def external_control_instant(world, plant, params, run, st, k, xs, r, j, x, y, t
     controller_estimates(params, st, mw_R, mw_L, us_R, us_L)
     controller_update(params, st, mw_R, mw_L, wd_R, wd_L, us_R, us_L, uc_R, uc_L, sat_R, sat_L)
     if kc == 0:
-        actuator.start(act, run, us_R, us_L)
+        actuator.start(act, run, line, us_R, us_L)
     run["w_d_prev"][0], run["w_d_prev"][1] = wd_R, wd_L
     run["w_d"][0], run["w_d"][1] = wd_R, wd_L
     run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1] = uc_R, uc_L, us_R, us_L

@@ -8,12 +8,19 @@ reaches the driver ``delay`` seconds later (a whole number of plant steps; :func
 voltage follows it through a first-order lag of time constant ``tau`` (:func:`driver_lag`), exact for a
 held input: ``u_k = u_in + a (u_k-1 - u_in)``, ``a = exp(-dt / tau)``. Before the first command has come through,
 the driver applies the first command.
+
+The delay line is one array per run beside the engine's run record (:func:`delay_lines`), not a field of it: its
+length is the delay, and the shape of a record's field is part of the compiled step loop's type, so a line in the
+record made every delay value a loop of its own, compiled anew (7-8 s each on a 2-core machine: the realism
+table's five delays compiled five loops per controller, 20 for its four).
 """
 
 from __future__ import annotations
 
 import math
 from typing import NamedTuple
+
+import numpy as np
 
 from ddmr_cli.checks import integer, non_negative
 from ddmr_cli.compiled import law
@@ -23,9 +30,15 @@ from ddmr_cli.errors import ConfigError
 MAX_PWM_BITS = 32
 
 
-def actuator_fields(delay_steps: int) -> list[tuple]:
-    """The per-run actuator state (fields of the engine's run record): the driver's output and the delay line."""
-    return [("u_drive", "f8", 2), ("delay_line", "f8", (delay_steps + 1, 2))]
+#: the per-run actuator state in the engine's run record: the driver's output [V]
+ACTUATOR_FIELDS = [("u_drive", "f8", 2)]
+
+
+def delay_lines(n_runs: int, delay_steps: int) -> np.ndarray:
+    """Every run's delay line, ``(n_runs, delay_steps + 1, 2)`` [V]: the held commands of the last
+    ``delay_steps + 1`` plant steps per wheel, a ring buffer (:func:`delay_line`). One array type whatever the
+    delay, so one compiled loop serves every delay."""
+    return np.zeros((n_runs, delay_steps + 1, 2))
 
 
 class ActuatorParameters(NamedTuple):
@@ -51,30 +64,33 @@ def driver_lag(u_prev, u_in, a):
 
 
 @law
-def start(p, run, u_R, u_L):
-    """At the first control instant: the delay line and the driver's output hold the first command."""
-    for i in range(run["delay_line"].shape[0]):
-        run["delay_line"][i, 0] = u_R
-        run["delay_line"][i, 1] = u_L
+def start(p, run, line, u_R, u_L):
+    """At the first control instant: the run's delay line ``line`` and the driver's output hold the first
+    command."""
+    for i in range(line.shape[0]):
+        line[i, 0] = u_R
+        line[i, 1] = u_L
     run["u_drive"][0] = u_R
     run["u_drive"][1] = u_L
 
 
 @law
-def delay_line(p, run, k, u_R, u_L):
-    """Write the held command at plant step ``k`` and return the one written ``delay_steps`` steps earlier [V]."""
-    n = run["delay_line"].shape[0]
-    run["delay_line"][k % n, 0] = u_R
-    run["delay_line"][k % n, 1] = u_L
+def delay_line(line, k, u_R, u_L):
+    """Write the held command at plant step ``k`` into the ring buffer ``line`` (``delay_steps + 1`` rows) and
+    return the one written ``delay_steps`` steps earlier [V]."""
+    n = line.shape[0]
+    line[k % n, 0] = u_R
+    line[k % n, 1] = u_L
     i = (k + 1) % n  # == (k - delay_steps) mod n
-    return run["delay_line"][i, 0], run["delay_line"][i, 1]
+    return line[i, 0], line[i, 1]
 
 
 @law
-def apply(p, run, k, u_R, u_L):
-    """The voltage on the motor at plant step ``k`` given the held command ``u`` [V]: delayed, then lagged."""
+def apply(p, run, line, k, u_R, u_L):
+    """The voltage on the motor at plant step ``k`` given the held command ``u`` [V]: delayed (the run's delay
+    line ``line``), then lagged."""
     if p.delay_steps > 0:
-        u_R, u_L = delay_line(p, run, k, u_R, u_L)
+        u_R, u_L = delay_line(line, k, u_R, u_L)
     if p.lagged:
         u_R = driver_lag(run["u_drive"][0], u_R, p.lag_a)
         u_L = driver_lag(run["u_drive"][1], u_L, p.lag_a)
@@ -124,5 +140,5 @@ class Actuator:
         return not (self.delay > 0.0 or self.lag > 0.0 or self.pwm_bits > 0)
 
 
-__all__ = ["Actuator", "ActuatorParameters", "actuator_fields", "pwm", "driver_lag", "start", "delay_line", "apply",
+__all__ = ["Actuator", "ActuatorParameters", "ACTUATOR_FIELDS", "delay_lines", "pwm", "driver_lag", "start", "delay_line", "apply",
            "MAX_PWM_BITS"]
