@@ -46,6 +46,16 @@ def catalogue(cases, fast=1, ids=None):
                          marks=() if i < fast else pytest.mark.slow) for i, c in enumerate(cases)]
 
 
+@pytest.fixture
+def skeletons(tmp_path, monkeypatch) -> Path:
+    """ddmr's cache of compositions, empty, in ``tmp_path`` (DDMR_CACHE_DIR), switched on: its ``skeletons`` dir."""
+    from ddmr_cli.config import skeleton_cache
+
+    monkeypatch.setenv("DDMR_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv(skeleton_cache.SWITCH, raising=False)
+    return tmp_path / "skeletons"
+
+
 @pytest.fixture(scope="session")
 def smoke_sweep_dir(tmp_path_factory) -> Path:
     """A complete ``+experiment=smoke`` sweep (joblib launcher), run once for the whole session."""

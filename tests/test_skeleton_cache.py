@@ -17,10 +17,8 @@ KEY = ("config", (("hydra", "pkg://hydra.conf"), ("main", "pkg://ddmr_cli.conf")
 
 
 @pytest.fixture
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("DDMR_CACHE_DIR", str(tmp_path))
-    monkeypatch.delenv(skeleton_cache.SWITCH, raising=False)
-    return tmp_path / "skeletons"
+def cache(skeletons):
+    return skeletons
 
 
 def _recording_loads(monkeypatch) -> list[bool]:

@@ -22,11 +22,14 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, ClassVar, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Callable, ClassVar, NamedTuple, Sequence
 
 from omegaconf import DictConfig
 
 from ddmr_cli.cli.usage import EXIT_FAILED, UsageError
+
+if TYPE_CHECKING:
+    from ddmr_cli.config import JobComposer
 
 #: composes one job's config from its overrides (``hydra_node``: with the ``hydra`` node)
 Compose = Callable[..., DictConfig]
@@ -59,8 +62,9 @@ class Mode:
     #: :meth:`watch` draws a bar over the jobs (Hydra's INFO lines are then kept off the terminal)
     draws_bar: ClassVar[bool] = False
 
-    def plan(self, base: DictConfig, overrides: list[str], parsed, compose: Callable[[list[str]], DictConfig]) -> Plan:
-        """The jobs and the session's overrides, every job composed and validated (raises ConfigError)."""
+    def plan(self, base: DictConfig, overrides: list[str], parsed, composer: "JobComposer") -> Plan:
+        """The jobs and the session's overrides, every job composed (by ``composer``) and validated (raises
+        ConfigError)."""
         raise NotImplementedError
 
     def preflight(self, out_dir: Path, jobs: Sequence[dict]) -> None:
@@ -124,6 +128,21 @@ def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: 
     return Validated(work, tuple(warned))
 
 
+def _compose_in_parallel(composer: "JobComposer", jobs: list[list[str]], shown: bool) -> None:
+    """The sweep's sets of group choices that ddmr's cache lacks composed at once on every core
+    (:meth:`~ddmr_cli.config.JobComposer.prefetch`: the first sweep after an edit of ``conf/``), with a status
+    line meanwhile."""
+    from ddmr_cli import progress
+    from ddmr_cli.compiled import thread_count
+
+    def composing(n_sets: int, n_processes: int):
+        return progress.status(f"composing {n_sets} sets of group choices in {n_processes} processes (the first "
+                               f"sweep of this config: kept for the next)", enabled=shown,
+                               delay=progress.delay_since_start())
+
+    composer.prefetch(jobs, thread_count(0), composing)
+
+
 #: a sweep on the default launcher (``launcher=local``, joblib) of at most this many jobs and this many simulated
 #: run-steps in all (a few seconds of one core) runs in this process on Hydra's basic launcher (``launcher=basic``):
 #: worker start-up and a kernel load per worker cost more than the parallel simulation saves. table4 (8 jobs,
@@ -156,9 +175,9 @@ class SingleRun(Mode):
     multirun = False
     lock_kind = "run"
 
-    def plan(self, base, overrides, parsed, compose):
+    def plan(self, base, overrides, parsed, composer):
         jobs = [{"dir": "", "overrides": list(overrides)}]
-        self.warnings = _validate_jobs(jobs, base, False, compose).warnings
+        self.warnings = _validate_jobs(jobs, base, False, composer.compose).warnings
         return Plan(jobs, [])
 
     def preflight(self, out_dir, jobs):
@@ -179,7 +198,7 @@ class Sweep(Mode):
 
     draws_bar = True
 
-    def plan(self, base, overrides, parsed, compose):
+    def plan(self, base, overrides, parsed, composer):
         from ddmr_cli.config.plan import plan_jobs
 
         jobs = plan_jobs(overrides, base)
@@ -194,7 +213,9 @@ class Sweep(Mode):
         # share one composition per set of group choices; the launcher is left out of the job dirs' names and of
         # the config hash: the same dirs, the same numbers
         session = ["launcher=basic"] if small_local_sweep(base, parsed, len(jobs), 0) else []
-        work, self.warnings = _validate_jobs(jobs, base, True, lambda job: compose([*job, *session]))
+        _compose_in_parallel(composer, [[*job["overrides"], *session] for job in jobs],
+                             bool(base.run.get("progress", True)))
+        work, self.warnings = _validate_jobs(jobs, base, True, lambda job: composer.compose([*job, *session]))
         return Plan(jobs, session if small_local_sweep(base, parsed, len(jobs), work) else [])
 
     def preflight(self, out_dir, jobs):
@@ -250,7 +271,7 @@ class _OptunaStudy(Mode):
         """The planned :class:`~ddmr_cli.study.tuning.Session` (checks the study's settings first)."""
         raise NotImplementedError
 
-    def plan(self, base, overrides, parsed, compose):
+    def plan(self, base, overrides, parsed, composer):
         self.session = self._prepare(base, overrides)  # read only: the lock is not held yet
         return Plan([], self.session.overrides)
 

@@ -75,7 +75,7 @@ def prepare(argv: list[str], overrides: list[str], multirun: bool, config_name: 
             raise UsageError(f"report.margin={margin}: {exc}") from None
         mode = mode_of(base, multirun)
         jobs = JobComposer(config_name, config_dir, extra)  # the defaults tree once per set of group choices
-        plan = mode.plan(base, overrides, parsed, jobs.compose)
+        plan = mode.plan(base, overrides, parsed, jobs)
         dir_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
         out_dir = Path(str(base.hydra.sweep.dir if multirun else base.hydra.run.dir))
     except ConfigError as exc:

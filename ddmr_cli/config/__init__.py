@@ -94,8 +94,6 @@ class JobComposer:
 
     def compose(self, overrides: Sequence[str]) -> DictConfig:
         """The job's config, without the hydra node: equal to ``compose_config(overrides + extra)``."""
-        from omegaconf import open_dict
-
         from ddmr_cli.config.compose_once import split_overrides
 
         full = [*overrides, *self.extra]
@@ -105,14 +103,45 @@ class JobComposer:
         if split is None:
             return compose_config(full, self.config_name)
         groups, values = split
+        return self._skeletons.job(tuple(o.input_line for o in groups), lambda: self._skeleton(groups), values)
 
-        def skeleton() -> DictConfig:
-            cfg = compose_config([o.input_line for o in groups], self.config_name, return_hydra_config=True)
-            with open_dict(cfg):
-                del cfg["hydra"]
-            return cfg
+    def _skeleton(self, groups: Sequence) -> DictConfig:
+        """The composition of the group choices ``groups`` (parsed overrides), without the hydra node."""
+        from omegaconf import open_dict
 
-        return self._skeletons.job(tuple(o.input_line for o in groups), skeleton, values)
+        cfg = compose_config([o.input_line for o in groups], self.config_name, return_hydra_config=True)
+        with open_dict(cfg):
+            del cfg["hydra"]
+        return cfg
+
+    def prefetch(self, jobs: Sequence[Sequence[str]], workers: int,
+                 while_composing: Callable[[int, int], Any] | None = None) -> int:
+        """Compose ahead the skeletons of ``jobs`` (each its override lines) that ddmr's cache lacks, in this process
+        and ``workers - 1`` helper processes at once (:mod:`ddmr_cli.config.compose_parallel`): the first sweep after
+        an edit of ``conf/``. ``while_composing(n_sets, n_processes)``: a context shown meanwhile. Returns the
+        helpers started (0: the cache held the first set, or too few sets, or a user's config dir)."""
+        from ddmr_cli.config import compose_parallel, skeleton_cache
+        from ddmr_cli.config.compose_once import compositions_once, split_overrides
+
+        if self.config_dir or self.extra or not skeleton_cache.enabled():
+            return 0
+        sets: dict[tuple[str, ...], Sequence] = {}
+        for job in jobs:
+            split = split_overrides(self._skeletons.parse(list(job)), self._is_group)
+            if split is not None:
+                sets.setdefault(tuple(o.input_line for o in split[0]), split[0])
+
+        def compose(key: tuple[str, ...]) -> bool:  # a set that does not compose is validation's to report
+            with compositions_once() as memo:
+                before = memo.composed
+                try:
+                    self._skeletons.job(key, lambda: self._skeleton(sets[key]), [])
+                except Exception:  # noqa: BLE001 - Hydra's and OmegaConf's errors, reported by validation
+                    return False
+                return memo.composed > before
+
+        return compose_parallel.share([k for k in sets if not self._skeletons.holds(k)], compose, self.config_name,
+                                   workers, *([while_composing] if while_composing else []))
 
     def _is_group(self, key: str) -> bool:
         return self._skeletons.is_group(key, _packaged_repository)

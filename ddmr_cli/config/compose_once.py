@@ -101,6 +101,10 @@ class Skeletons(OverrideParser):
         super().__init__()
         self._pickled: dict[tuple[str, ...], bytes] = {}
 
+    def holds(self, key: tuple[str, ...]) -> bool:
+        """Whether the skeleton ``key`` is composed (in this process)."""
+        return key in self._pickled
+
     def job(self, key: tuple[str, ...], compose: Callable[[], DictConfig], values: Sequence) -> DictConfig:
         """A copy of the skeleton ``key`` (``compose()`` makes it the first time) with the value overrides
         applied as Hydra applies them."""
@@ -186,6 +190,8 @@ class CompositionMemo(OverrideParser):
     def __init__(self) -> None:
         super().__init__()
         self._kept: dict[tuple, tuple[bool, bytes, bool]] = {}
+        #: compositions Hydra made in this memo (not loaded from ddmr's cache)
+        self.composed = 0
 
     def _tree_and_values(self, loader, parsed: list) -> tuple[tuple[str, ...], list]:
         """The override lines the composition is made from, and the value overrides applied to each copy."""
@@ -225,6 +231,7 @@ class CompositionMemo(OverrideParser):
             named_path = any(o.get_key_element() == "hydra.searchpath" for o in parsed)
             kept, loaded = (composed(), False) if named_path else cached_composition(key, multirun, composed)
             self._kept[key] = kept
+            self.composed += not loaded
             if loaded and validate_sweep_overrides:
                 check_sweep_overrides(parsed, run_mode, from_shell)
         elif validate_sweep_overrides:
