@@ -338,6 +338,22 @@ def test_runs_are_bit_identical_whatever_the_thread_count_on_very_rough_ground()
     assert np.isfinite(one).all() and np.abs(one[..., 6:]).max() > 10.0  # none diverged; the rough zone disturbs
 
 
+def test_the_thread_count_left_to_the_plant_is_one_per_16_runs_up_to_the_cores(monkeypatch):
+    """plant.threads 0 (and the engine's run.threads 0): the threads follow the batch, as handing a few runs to
+    threads at every step costs more than it saves; a count the config or the engine sets is kept."""
+    from ddmr_cli.plant import mujoco as plant_module
+
+    monkeypatch.setattr(plant_module.os, "sched_getaffinity", lambda pid: set(range(4)))  # a 4-core process
+    few = plant_module.MIN_RUNS_PER_THREAD
+    chosen, kept = make("none", threads=0), make("none", threads=3)
+    counts = []
+    for n in (6, 2 * few, 5 * few, 6):
+        chosen.reset(np.arange(n), [1.0, 0.0, 0.0], [0.0, 0.0])
+        counts.append(chosen.threads)
+    kept.reset(np.arange(6), [1.0, 0.0, 0.0], [0.0, 0.0])
+    assert counts == [1, 2, 4, 1] and kept.threads == 3
+
+
 def test_ddmr_bench_times_the_plant_and_splits_the_wall_time():
     """ddmr bench's section 6 (ddmr_cli/bench/physics.py): steps per second and the share in MuJoCo."""
     from ddmr_cli.bench.physics import plant_throughput
