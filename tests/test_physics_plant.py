@@ -343,7 +343,7 @@ def test_the_thread_count_left_to_the_plant_is_one_per_16_runs_up_to_the_cores(m
     threads at every step costs more than it saves; a count the config or the engine sets is kept."""
     from ddmr_cli.plant import mujoco as plant_module
 
-    monkeypatch.setattr(plant_module.os, "sched_getaffinity", lambda pid: set(range(4)))  # a 4-core process
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: set(range(4)))  # a 4-core process (thread_count)
     few = plant_module.MIN_RUNS_PER_THREAD
     chosen, kept = make("none", threads=0), make("none", threads=3)
     counts = []

@@ -135,13 +135,13 @@ class JobComposer:
             with compositions_once() as memo:
                 before = memo.composed
                 try:
-                    self._skeletons.job(key, lambda: self._skeleton(sets[key]), [])
+                    self._skeletons.keep(key, lambda: self._skeleton(sets[key]))
                 except Exception:  # noqa: BLE001 - Hydra's and OmegaConf's errors, reported by validation
                     return False
                 return memo.composed > before
 
         return compose_parallel.share([k for k in sets if not self._skeletons.holds(k)], compose, self.config_name,
-                                   workers, *([while_composing] if while_composing else []))
+                                      workers, while_composing)
 
     def _is_group(self, key: str) -> bool:
         return self._skeletons.is_group(key, _packaged_repository)

@@ -105,14 +105,18 @@ class Skeletons(OverrideParser):
         """Whether the skeleton ``key`` is composed (in this process)."""
         return key in self._pickled
 
+    def keep(self, key: tuple[str, ...], compose: Callable[[], DictConfig]) -> bytes:
+        """The skeleton ``key``, pickled; ``compose()`` makes it the first time."""
+        if key not in self._pickled:
+            self._pickled[key] = pickle.dumps(compose(), protocol=pickle.HIGHEST_PROTOCOL)
+        return self._pickled[key]
+
     def job(self, key: tuple[str, ...], compose: Callable[[], DictConfig], values: Sequence) -> DictConfig:
         """A copy of the skeleton ``key`` (``compose()`` makes it the first time) with the value overrides
         applied as Hydra applies them."""
         from ddmr_cli.compat import apply_overrides
 
-        if key not in self._pickled:
-            self._pickled[key] = pickle.dumps(compose(), protocol=pickle.HIGHEST_PROTOCOL)
-        cfg = pickle.loads(self._pickled[key])
+        cfg = pickle.loads(self.keep(key, compose))
         apply_overrides(values, cfg)
         return cfg
 

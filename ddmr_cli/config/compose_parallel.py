@@ -4,11 +4,12 @@ A sweep is composed once per set of group choices (a *skeleton*: :class:`~ddmr_c
 skeleton is kept on disk (:mod:`~ddmr_cli.config.skeleton_cache`): a later process loads it in a few ms. The first
 sweep after an edit of ``conf/``, an upgrade or on a new machine composes every skeleton with Hydra, about 0.3 s
 each, one after the other in the CLI's process while the other cores wait: the realism table's 152 sets took 45 s
-of its 75 s. :func:`share` finds that case (the sweep's first set was composed, not loaded) and composes the sets left in
-this process and in one helper process per other core (``python -m ddmr_cli.config``), each its share, into the
-disk cache, as many processes as get :data:`MIN_SETS` sets or more each (none below 16 sets left on 2 cores); the
-CLI's validation then loads them. The realism table on 2 cores, compositions cold: 45.5 s of validation -> 22.6 s. A helper is Hydra's compose API in another process: it writes only the cache's files (atomically, the
-bytes any process composing that set writes). A helper that fails or is slow leaves its sets to the validation,
+of its 75 s. :func:`share` finds that case (the sweep's first set was composed, not loaded) and composes the sets
+left in this process and in one helper process per other core (``python -m ddmr_cli.config``), each its share,
+into the disk cache, as many processes as get :data:`MIN_SETS` sets or more each (none below 16 sets left on 2
+cores); the CLI's validation then loads them. The realism table on 2 cores, compositions cold: 45.5 s of
+validation -> 22.6 s. A helper is Hydra's compose API in another process: it writes only the cache's files
+(atomically, the bytes any process composing that set writes). A helper that fails or is slow leaves its sets to the validation,
 which composes them, and reports their errors, as it would without helpers. A helper runs in its own session
 (the terminal's Ctrl-C reaches ddmr only) and ends when its stdin closes: when the CLI ends, however it ends.
 """
@@ -32,14 +33,13 @@ WAIT_PER_SET = 5.0
 
 
 def share(sets: Sequence[tuple[str, ...]], compose: Callable[[tuple[str, ...]], bool], config_name: str,
-          workers: int, while_composing: Callable[[int, int], ContextManager] = lambda n, k: contextlib.nullcontext()
-          ) -> int:
+          workers: int, while_composing: Callable[[int, int], ContextManager] | None = None) -> int:
     """Compose ``sets`` (each the group choices of a skeleton, override lines) into ddmr's cache.
 
     ``compose(groups)`` composes one set in this process and says whether Hydra composed it (False: it was loaded
     from the cache). The first set is composed here; when it was loaded, the cache is warm and nothing else is
     done. Otherwise the others go in equal shares to this process and ``workers - 1`` helpers, inside
-    ``while_composing(n_sets, n_processes)`` (a progress line). Returns the helpers started."""
+    ``while_composing(n_sets, n_processes)`` (a progress line; None: nothing). Returns the helpers started."""
     if not sets or not compose(sets[0]):
         return 0
     rest = list(sets[1:])
@@ -49,7 +49,7 @@ def share(sets: Sequence[tuple[str, ...]], compose: Callable[[tuple[str, ...]], 
     shares = [rest[i::processes] for i in range(processes)]
     helpers = [_start(config_name, part) for part in shares[1:]]
     try:
-        with while_composing(len(rest), processes):
+        with while_composing(len(rest), processes) if while_composing else contextlib.nullcontext():
             for groups in shares[0]:
                 compose(groups)
             for helper, part in zip(helpers, shares[1:]):

@@ -140,5 +140,5 @@ class Actuator:
         return not (self.delay > 0.0 or self.lag > 0.0 or self.pwm_bits > 0)
 
 
-__all__ = ["Actuator", "ActuatorParameters", "ACTUATOR_FIELDS", "delay_lines", "pwm", "driver_lag", "start", "delay_line", "apply",
-           "MAX_PWM_BITS"]
+__all__ = ["Actuator", "ActuatorParameters", "ACTUATOR_FIELDS", "delay_lines", "pwm", "driver_lag", "start",
+           "delay_line", "apply", "MAX_PWM_BITS"]

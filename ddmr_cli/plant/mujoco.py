@@ -17,14 +17,13 @@ import copy
 import functools
 import importlib.util
 import math
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ddmr_cli.compiled import plain
+from ddmr_cli.compiled import plain, thread_count
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.dynamics import nominal_acceleration
 from ddmr_cli.model.robot import NominalModel, Robot
@@ -155,7 +154,7 @@ class MujocoPlant:
         self._nq = m.nq
         self._nominal = NominalModel.from_robot(robot)
         self._chosen = config.threads or threads  # 0: chosen from the batch's size at reset
-        self._threads = self._chosen or len(os.sched_getaffinity(0))
+        self._threads = self._chosen or thread_count(0)
         self._settle_steps = int(round(config.settle_time / config.timestep))
         self._airborne_steps = max(1, int(math.ceil(config.divergence.airborne_time / self.dt - 1e-9)))
         self._bad_qacc = int(mj.mjtWarning.mjWARN_BADQACC)
@@ -200,7 +199,7 @@ class MujocoPlant:
         w0 = np.broadcast_to(np.asarray(w0, dtype=float), (n, 2))
         self._n = n
         if not self._chosen:
-            self._threads = max(1, min(len(os.sched_getaffinity(0)), n // MIN_RUNS_PER_THREAD))
+            self._threads = max(1, min(thread_count(0), n // MIN_RUNS_PER_THREAD))
             self.close()  # a pool sized for another batch
         self._models, grounds = map(list, zip(*[self._model_for(int(s)) for s in seeds]))
         self._datas = [mj.MjData(m) for m in self._models]
