@@ -46,7 +46,9 @@ _SCRIPT = textwrap.dedent("""
     def job(spec):
         controller, scenario, realism = spec.split(":")
         overrides = [f"controller={controller}", f"scenario={scenario}", "simulation.duration=0.06"]
-        if realism != "-":
+        if "=" in realism:  # an override of its own (controller.nn.n_neurons=5)
+            overrides.append(realism)
+        elif realism != "-":
             overrides.append(f"+realism={realism}")
         try:
             r = simulate(paper_simulation(*overrides), [3, 4])
@@ -217,6 +219,28 @@ def test_one_compiled_loop_serves_every_actuator_delay(tmp_path):
     assert first_ideal[jobs[0]] == alone[jobs[0]]
     assert again == first_ideal
     assert len({tuple(values) for values in first_ideal.values()}) == 3, first_ideal
+
+
+def test_one_compiled_loop_serves_every_network_size_of_a_block(tmp_path):
+    """The state record holds the RBF network in blocks of NEURON_BLOCK neurons, so the sizes 5, 10 and 15 (the
+    sensitivity study's first three) share one record layout: a process running the three compiles one loop; that loop, compiled
+    first for 10 neurons, gives 5 neurons' numbers bit for bit (against a process that compiled for 5 alone); the
+    sizes change the numbers (the laws run over n neurons). The next block is another layout."""
+    from ddmr_cli.control import rbf
+    from ddmr_cli.control.smc import SMC
+
+    def fields(n):
+        nn = rbf.RBFNetworkObserver(n_neurons=n, width=2.0, learning_rate=50.0, center_min=-40.0, center_max=40.0)
+        return SMC(lam=25.0, switching_gain=12.0, boundary_layer=0.1, surface="proportional", switching="sat",
+                   nn=nn).state_fields()
+
+    assert rbf.NEURON_BLOCK == 16 and fields(1) == fields(5) == fields(16) != fields(17) == fields(32)
+    jobs, counts = [f"smc_ndo_nno:paper_1:controller.nn.n_neurons={n}" for n in (5, 10, 15)], []
+    alone = _run(tmp_path / "alone", jobs[0], counts=counts)
+    shared = _run(tmp_path / "warm", jobs[1], jobs[2], jobs[0], counts=counts)
+    assert counts == [(0, 1), (0, 1)], counts
+    assert shared[jobs[0]] == alone[jobs[0]]
+    assert len({tuple(values) for values in shared.values()}) == 3, shared
 
 
 #: the realism points of the full matrix: ideal, a delay, a control rate, an encoder, speed noise, and all at once

@@ -20,6 +20,19 @@ from ddmr_cli.errors import ConfigError
 
 #: below this exponent exp underflows to exactly 0.0 (exp(-745.14) is half the smallest subnormal, 2^-1075)
 EXP_ZERO = -746.0
+#: A state record holds the network in blocks of this many neurons (:func:`capacity`): numba types a record by its
+#: fields' shapes and compiles a step loop per record layout (8-9 s each), so the sizes 1 to 16 (Table 3's 10 and
+#: the sensitivity study's 5, 10 and 15) share one layout and one loop, 17 to 32 the next. The laws run over the
+#: first ``n`` only. Blocks of 32 would take the study's 20 too, but raised a 10,000-seed run's peak by 3.4 MiB
+#: (194.3 -> 197.7 MiB), enough to put ``ddmr bench``'s 197 MiB past its 200 MB target; blocks of 16 left it
+#: unchanged (194.1 MiB; measured, issue 28).
+NEURON_BLOCK = 16
+
+
+def capacity(n_neurons: int) -> int:
+    """The neurons a state record holds for a network of ``n_neurons``: ``n`` rounded up to a whole
+    :data:`NEURON_BLOCK` (the weights' and the basis's length; the entries past ``n`` stay 0 and are never read)."""
+    return -(-int(n_neurons) // NEURON_BLOCK) * NEURON_BLOCK
 
 
 class RBFParameters(NamedTuple):
@@ -72,11 +85,12 @@ def basis(p, phi, w_R, w_L):
 
 @law
 def estimate(p, weights, phi, w_R, w_L):
-    """(24): ``d_hat_NN = W^T Phi(x)`` [rad/s^2]; leaves ``Phi(x)`` in ``phi`` for :func:`update`."""
+    """(24): ``d_hat_NN = W^T Phi(x)`` [rad/s^2] over the ``n`` neurons (the record may hold more:
+    :func:`capacity`); leaves ``Phi(x)`` in ``phi`` for :func:`update`."""
     basis(p, phi, w_R, w_L)
     d_R = 0.0
     d_L = 0.0
-    for j in range(phi.shape[0]):
+    for j in range(p.n_neurons):
         d_R += weights[0, j] * phi[j]
         d_L += weights[1, j] * phi[j]
     return d_R, d_L
@@ -84,9 +98,9 @@ def estimate(p, weights, phi, w_R, w_L):
 
 @law
 def update(p, dt, weights, phi, s_R, s_L):
-    """(25), one Euler step: ``W <- W - dt gamma Phi(x) s^T``."""
+    """(25), one Euler step: ``W <- W - dt gamma Phi(x) s^T`` for the ``n`` neurons."""
     step_R, step_L = (dt * p.learning_rate[0]) * s_R, (dt * p.learning_rate[1]) * s_L
-    for j in range(phi.shape[0]):
+    for j in range(p.n_neurons):
         weights[0, j] -= step_R * phi[j]
         weights[1, j] -= step_L * phi[j]
 

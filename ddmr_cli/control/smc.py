@@ -160,7 +160,10 @@ class SMC(WheelController):
                              self.ndo is not None, ndo_params, self.nn is not None, nn_params)
 
     def state_fields(self):
-        n = self.nn.n_neurons if self.nn is not None else 1
+        """The error integral, the NDO's state and the network's weights and basis, held in blocks of
+        :data:`~ddmr_cli.control.rbf.NEURON_BLOCK` neurons (one record layout, one compiled loop, for the sizes
+        1 to 16)."""
+        n = rbf.capacity(self.nn.n_neurons) if self.nn is not None else 1
         return [("error_integral", "f8", 2), ("z", "f8", 2), ("weights", "f8", (2, n)), ("phi", "f8", n)]
 
     def diagnostics(self):

@@ -8,7 +8,7 @@ A parameter is one of
 - **scale** (``mode: scale``): every key gets its configured value times ``value`` (list values element-wise);
   the faithful reading is 1;
 - **choice** (``options``, a list): the value is one of the options, set on every key (``integrator: rk4``,
-  ``n_neurons: 10``; a few values, as each RBF size compiles its own kernel).
+  ``n_neurons: 10``; a few values, as each block of 16 RBF sizes compiles its own kernel).
 
 Samplers work on the unit cube: :meth:`Parameter.from_unit` maps u in [0, 1] onto the box (log or linear axis,
 integers rounded, choices by equal shares).
