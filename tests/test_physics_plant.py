@@ -338,6 +338,23 @@ def test_runs_are_bit_identical_whatever_the_thread_count_on_very_rough_ground()
     assert np.isfinite(one).all() and np.abs(one[..., 6:]).max() > 10.0  # none diverged; the rough zone disturbs
 
 
+def test_the_calling_thread_steps_a_share_and_the_workers_the_others():
+    """With 3 threads, a step hands two shares to the pool's (at most) two workers and the calling thread steps the
+    third itself."""
+    import threading
+
+    plant = make("none", threads=3)
+    plant.reset(np.arange(6), [1.0, 0.0, 0.0], [0.0, 0.0])
+    stepped, advance = [], plant._advance
+    plant._advance = lambda runs, ctrl: (stepped.append((threading.get_ident(), tuple(runs))), advance(runs, ctrl))
+    plant.step(np.full((6, 2), 5.0), np.ones(6))
+    assert sorted(r for _, runs in stepped for r in runs) == list(range(6))  # every run stepped once
+    mine = [runs for ident, runs in stepped if ident == threading.get_ident()]
+    assert len(stepped) == 3 and mine == [(4, 5)], stepped  # three shares of two runs, the last one the caller's
+    assert plant._pool()._max_workers == 2
+    plant.close()
+
+
 def test_the_thread_count_left_to_the_plant_is_one_per_16_runs_up_to_the_cores(monkeypatch):
     """plant.threads 0 (and the engine's run.threads 0): the threads follow the batch, as handing a few runs to
     threads at every step costs more than it saves; a count the config or the engine sets is kept."""

@@ -4,9 +4,9 @@ plant (MuJoCo)").
 :class:`MujocoPlant` is an external plant the engine steps from Python: a batch of ``n`` runs, each its own MuJoCo
 model (its own seeded ground) and data. Each plant step holds the applied motor voltages, runs ``dt / timestep``
 MuJoCo steps (the DC-motor law is the actuators' affine form, so back-EMF and damping act at every MuJoCo step),
-then reads the true state and the lumped disturbance of the paper's (8). The runs advance in worker threads
-(``mujoco.mj_step`` releases the GIL); a run touches only its own model and data, so its numbers do not depend
-on the thread count.
+then reads the true state and the lumped disturbance of the paper's (8). The runs advance in threads, one share
+each: the calling thread steps the last share and ``threads - 1`` workers the others (``mujoco.mj_step`` releases
+the GIL); a run touches only its own model and data, so its numbers do not depend on the thread count.
 
 Needs the optional extra ``physics`` (``pip install -e ".[physics]"``).
 """
@@ -18,7 +18,7 @@ import functools
 import importlib.util
 import math
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -284,8 +284,13 @@ class MujocoPlant:
         if len(shares) <= 1:
             for s in shares:
                 self._advance(s, ctrl)
-        else:
-            for f in [self._pool().submit(self._advance, s, ctrl) for s in shares]:
+        else:  # the calling thread steps the last share itself
+            futures = [self._pool().submit(self._advance, s, ctrl) for s in shares[:-1]]
+            try:
+                self._advance(shares[-1], ctrl)
+            finally:  # no worker is left stepping when this returns or raises
+                wait(futures)
+            for f in futures:
                 f.result()
         stepped = time.perf_counter()
         w = self._qvel[:, self._wheel_dof]
@@ -304,8 +309,10 @@ class MujocoPlant:
         self._seconds["step"] += time.perf_counter() - started
 
     def _pool(self) -> ThreadPoolExecutor:
+        """The ``threads - 1`` workers that step the shares the calling thread does not: its own share saves a
+        hand-off a step (24 runs on 2 cores, 4 alternating pairs of processes: 1.08-1.18x the steps a second)."""
         if getattr(self, "_executor", None) is None:
-            self._executor = ThreadPoolExecutor(self._threads, thread_name_prefix="mujoco")
+            self._executor = ThreadPoolExecutor(self._threads - 1, thread_name_prefix="mujoco")
         return self._executor
 
     def close(self) -> None:
@@ -358,8 +365,8 @@ class MujocoPlant:
 
     @property
     def threads(self) -> int:
-        """The worker threads stepping the runs (``plant.threads``; 0 resolved at :meth:`reset`: one per
-        :data:`MIN_RUNS_PER_THREAD` runs, at most one per core of this process)."""
+        """The threads stepping the runs, the calling one included (``plant.threads``; 0 resolved at
+        :meth:`reset`: one per :data:`MIN_RUNS_PER_THREAD` runs, at most one per core of this process)."""
         return self._threads
 
     def timing(self) -> dict[str, float]:
