@@ -525,8 +525,9 @@ class MujocoPlantConfig:
                       "physics extra)", model=PLANT_MODEL)
     timestep: float = param(unit="s", help="MuJoCo's step", range="> 0; simulation.dt a whole multiple of it",
                             model=PLANT_MODEL)
-    threads: int = param(unit="1", help="worker threads stepping a batch's runs; 0 = run.threads' choice (1 per "
-                         "job of a sweep in parallel processes, else one per 16 runs, at most every core)",
+    threads: int = param(unit="1", help="threads stepping a batch's runs, the caller's included; 0 = "
+                         "run.threads' choice (1 per job of a sweep in parallel processes, else one per 16 runs, at "
+                         "most every core)",
                          range=">= 0", model=PLANT_MODEL)
     settle_time: float = param(unit="s", help="the robot settles onto its ground (held still) before the run",
                                range=">= 0", model=PLANT_MODEL)
