@@ -355,13 +355,14 @@ def test_the_calling_thread_steps_a_share_and_the_workers_the_others():
     plant.close()
 
 
-def test_the_thread_count_left_to_the_plant_is_one_per_16_runs_up_to_the_cores(monkeypatch):
+def test_the_thread_count_left_to_the_plant_is_one_per_12_runs_up_to_the_cores(monkeypatch):
     """plant.threads 0 (and the engine's run.threads 0): the threads follow the batch, as handing a few runs to
     threads at every step costs more than it saves; a count the config or the engine sets is kept."""
     from ddmr_cli.plant import mujoco as plant_module
 
     monkeypatch.setattr("os.sched_getaffinity", lambda pid: set(range(4)))  # a 4-core process (thread_count)
     few = plant_module.MIN_RUNS_PER_THREAD
+    assert few == 12
     chosen, kept = make("none", threads=0), make("none", threads=3)
     counts = []
     for n in (6, 2 * few, 5 * few, 6):

@@ -526,7 +526,7 @@ class MujocoPlantConfig:
     timestep: float = param(unit="s", help="MuJoCo's step", range="> 0; simulation.dt a whole multiple of it",
                             model=PLANT_MODEL)
     threads: int = param(unit="1", help="threads stepping a batch's runs, the caller's included; 0 = "
-                         "run.threads' choice (1 per job of a sweep in parallel processes, else one per 16 runs, at "
+                         "run.threads' choice (1 per job of a sweep in parallel processes, else one per 12 runs, at "
                          "most every core)",
                          range=">= 0", model=PLANT_MODEL)
     settle_time: float = param(unit="s", help="the robot settles onto its ground (held still) before the run",

@@ -34,11 +34,12 @@ from ddmr_cli.plant.mujoco_model import (PhysicsConfig, check_reference, check_r
 
 __all__ = ["MujocoPlant", "check", "factory", "import_mujoco", "validate", "EXTRA_HINT", "MIN_RUNS_PER_THREAD"]
 
-#: the fewest runs a worker thread steps when the thread count is left to the plant (``plant.threads`` and the
-#: engine's ``run.threads`` 0): the runs are handed to the threads at every plant step, and with fewer runs a thread
-#: the hand-off costs more than the threads save. Two threads against one on 2 cores, 3 alternating pairs each:
-#: 6 runs 0.84x, 12 runs 0.93x, 24 runs 0.80-1.07x, 50 runs 1.27-1.42x, 100 runs 1.47x
-MIN_RUNS_PER_THREAD = 16
+#: the fewest runs a thread steps when the thread count is left to the plant (``plant.threads`` and the engine's
+#: ``run.threads`` 0): the runs are handed to the threads at every plant step, and with fewer runs a thread the
+#: hand-off costs more than the threads save. Two threads against one on 2 cores, the caller stepping a share
+#: (:meth:`MujocoPlant.step`), 3 alternating pairs each: 12 runs 0.92-1.04x, 16 runs 0.98-1.09x, 24 runs 1.05-1.40x
+#: (9 pairs); before the caller stepped a share: 6 runs 0.84x, 24 runs 0.80-1.07x, 50 runs 1.27-1.42x, 100 runs 1.47x
+MIN_RUNS_PER_THREAD = 12
 
 #: the one line a missing extra prints
 EXTRA_HINT = 'needs MuJoCo, the optional extra: pip install -e ".[physics]"'
