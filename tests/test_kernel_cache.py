@@ -223,9 +223,9 @@ def test_one_compiled_loop_serves_every_actuator_delay(tmp_path):
 
 def test_one_compiled_loop_serves_every_network_size_of_a_block(tmp_path):
     """The state record holds the RBF network in blocks of NEURON_BLOCK neurons, so the sizes 5, 10 and 15 (the
-    sensitivity study's first three) share one record layout: a process running the three compiles one loop; that loop, compiled
-    first for 10 neurons, gives 5 neurons' numbers bit for bit (against a process that compiled for 5 alone); the
-    sizes change the numbers (the laws run over n neurons). The next block is another layout."""
+    sensitivity study's first three) share one record layout: a process running the three compiles one loop; that
+    loop, compiled first for 10 neurons, gives 5 neurons' numbers bit for bit (against a process that compiled for 5
+    alone); the sizes change the numbers (the laws run over n neurons). The next block is another layout."""
     from ddmr_cli.control import rbf
     from ddmr_cli.control.smc import SMC
 

@@ -9,9 +9,10 @@ left in this process and in one helper process per other core (``python -m ddmr_
 into the disk cache, as many processes as get :data:`MIN_SETS` sets or more each (none below 16 sets left on 2
 cores); the CLI's validation then loads them. The realism table on 2 cores, compositions cold: 45.5 s of
 validation -> 22.6 s. A helper is Hydra's compose API in another process: it writes only the cache's files
-(atomically, the bytes any process composing that set writes). A helper that fails or is slow leaves its sets to the validation,
-which composes them, and reports their errors, as it would without helpers. A helper runs in its own session
-(the terminal's Ctrl-C reaches ddmr only) and ends when its stdin closes: when the CLI ends, however it ends.
+(atomically, the bytes any process composing that set writes). A helper that fails or is slow leaves its sets to
+the validation, which composes them, and reports their errors, as it would without helpers. A helper runs in its
+own session (the terminal's Ctrl-C reaches ddmr only) and ends when its stdin closes: when the CLI ends, however it
+ends.
 """
 
 from __future__ import annotations

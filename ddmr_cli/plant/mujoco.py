@@ -116,7 +116,7 @@ class MujocoPlant:
         Its phases that turn the roughness off (scenario 2's [5, 10) m) are flat ground (the zone's rolling
         friction kept); None: the zones' roughness everywhere.
     threads : int
-        Worker threads stepping the runs when ``config.threads`` is 0 (0 here too: one per
+        Threads stepping the runs, the calling one included, when ``config.threads`` is 0 (0 here too: one per
         :data:`MIN_RUNS_PER_THREAD` runs of the batch, at most one per core of this process).
 
     Attributes
