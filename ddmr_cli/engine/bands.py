@@ -4,15 +4,21 @@ The step loop writes a few channels of every run into a buffer that holds one ch
 ``stride``-th step (:func:`band_row`); after each chunk :meth:`BandAccumulator.add_chunk` reduces it over the
 runs to the mean and the 5th and 95th percentiles (exact, over the runs that are still finite) and drops it. The
 buffer is bounded by the engine's chunk budget, the result by the grid: memory does not grow with the seeds.
+
+Two reductions give the same bits: numpy's (a transpose, then each row sorted or partitioned), and from
+:data:`WINDOW_MIN_RUNS` runs on, for a block whose values are all finite, the compiled windowed pass of
+:mod:`ddmr_cli.engine.band_windows`, which finds each grid point's order statistics from a narrow window carried
+from the point before instead of sorting every run's value.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import jit_enabled, law
 
 #: The channels the bands cover, in the order :func:`band_row` writes them (names as in SERIES_CHANNELS).
 BAND_CHANNELS = ("deviation", "e_x", "e_y", "e_theta", "u_right", "u_left", "s_right", "s_left")
@@ -28,6 +34,12 @@ REDUCE_BLOCK_BYTES = 2**20
 #: numpy's SIMD sort is faster up to about a thousand values a row, the partition twice as fast at 10,000.
 #: Either gives the same order statistics, so the bands do not depend on it.
 PARTITION_MIN_RUNS = 2000
+#: From this many runs on, a chunk of finite values is reduced by the compiled windowed pass
+#: (:mod:`ddmr_cli.engine.band_windows`) instead of numpy's transpose and sort: the same numbers, bit for bit.
+#: Measured on band buffers of the engine's own runs (smc_ndo on the paper's terrain, chunked as the engine chunks),
+#: ns a value, numpy against windowed: 50 runs 3.5 / 17.5, 200 runs 4.1 / 7.7, 400 runs 8.1 / 6.1, 1,000 runs
+#: 15.1 / 5.7 (smc_ndo_nno 14.6 / 5.3), 2,000 runs 15.8 / 5.3, 10,000 runs 20.0 / 7.3.
+WINDOW_MIN_RUNS = 400
 
 
 @law
@@ -45,7 +57,7 @@ def order_rows(rows: np.ndarray, percents) -> None:
     if n < PARTITION_MIN_RUNS:
         rows.sort(axis=-1)
         return
-    ks = sorted({math.floor((n - 1) * (float(p) / 100.0)) for p in percents})
+    ks = sorted({_virtual_index(n, p)[0] for p in percents})
     rows.partition(ks, axis=-1)
     # after the partition, everything right of position k is >= rows[k], and everything up to the next k' is <=
     # rows[k']: the (k + 1)-th order statistic is the smallest value in (k, k'] (or (k, n) for the last k)
@@ -61,15 +73,25 @@ def percentiles_of_sorted(rows: np.ndarray, percents) -> list[np.ndarray]:
     x[floor h]``, ``b`` the next, ``g = h - floor h``, then ``a + (b - a) g`` or, for ``g >= 0.5``,
     ``b - (b - a)(1 - g)``. Sorting the rows (SIMD) and reading two columns is several times faster than
     ``np.percentile``'s selection per row at tens to hundreds of runs."""
-    n = rows.shape[-1]
     out = []
     for p in percents:
-        h = (n - 1) * (float(p) / 100.0)
-        k = math.floor(h)
-        g = h - k
-        a, b = rows[..., k], rows[..., min(k + 1, n - 1)]
-        out.append(b - (b - a) * (1.0 - g) if g >= 0.5 else a + (b - a) * g)
+        k, k_next, g = _virtual_index(rows.shape[-1], p)
+        out.append(_interpolated(rows[..., k], rows[..., k_next], g))
     return out
+
+
+def _virtual_index(n: int, percent: float) -> tuple[int, int, float]:
+    """numpy's ``linear`` method over n values: the two order statistics either side of the virtual index
+    ``h = (n - 1) p / 100`` (``floor h`` and the next, the last at most) and the fraction ``h - floor h``."""
+    h = (n - 1) * (float(percent) / 100.0)
+    k = math.floor(h)
+    return k, min(k + 1, n - 1), h - k
+
+
+def _interpolated(a: np.ndarray, b: np.ndarray, g: float) -> np.ndarray:
+    """numpy's ``linear`` percentile between order statistics ``a`` and the next, ``b``, at fraction ``g`` of the way:
+    ``a + (b - a) g`` or, for ``g >= 0.5``, ``b - (b - a)(1 - g)``."""
+    return b - (b - a) * (1.0 - g) if g >= 0.5 else a + (b - a) * g
 
 
 def _finite_mean(buffer: np.ndarray) -> np.ndarray:
@@ -115,6 +137,10 @@ class BandAccumulator:
         self.mean = np.full((len(BAND_CHANNELS), self.n_points), np.nan)
         self.low = np.full_like(self.mean, np.nan)
         self.high = np.full_like(self.mean, np.nan)
+        # the windowed pass's windows, carried from one call to the next (a hint for speed only: any windows give
+        # the same numbers), and the lock that keeps threads reducing disjoint ranges from tearing them
+        self._windows = np.full((len(BAND_CHANNELS), 4), np.nan)
+        self._windows_lock = threading.Lock()
 
     def grid_range(self, k0: int, n_steps: int) -> tuple[int, int]:
         """The grid points ``[first, end)`` that fall on steps ``k0 .. k0 + n_steps - 1``."""
@@ -131,12 +157,37 @@ class BandAccumulator:
         """Reduce ``buffer[run, j, channel]`` (grid points ``first + j``) over the runs; only the buffer's grid
         points ``points = (a, b)`` when given (threads may reduce disjoint ranges of one buffer at once: every
         number is reduced over the runs of its own grid point and channel alone, so the split changes no bits)."""
-        if points is not None:
-            a, b = points
-            buffer, first = buffer[:, a:b], first + a
+        a, b = points if points is not None else (0, buffer.shape[1])
+        if buffer.shape[0] >= WINDOW_MIN_RUNS and jit_enabled() and self._reduce_windowed(buffer, first, a, b):
+            return
+        buffer, first = buffer[:, a:b], first + a
         block = max(1, REDUCE_BLOCK_BYTES // max(1, buffer.shape[0] * buffer.shape[2] * buffer.itemsize))
         for a in range(0, buffer.shape[1], block):
             self._reduce(buffer[:, a:a + block], first + a)
+
+    def _reduce_windowed(self, buffer: np.ndarray, first: int, a: int, b: int) -> bool:
+        """:meth:`add_chunk` of grid points ``a .. b - 1`` by the compiled windowed pass
+        (:func:`~ddmr_cli.engine.band_windows.reduce_points`); False, with nothing written, when a value is not finite
+        (a run has diverged: numpy's reduction drops it)."""
+        from ddmr_cli.engine.band_windows import reduce_points
+
+        n, n_points = buffer.shape[0], b - a
+        (k1, k1_next, g1), (k2, k2_next, g2) = _virtual_index(n, LOW), _virtual_index(n, HIGH)
+        sums = np.empty((n_points, len(BAND_CHANNELS)))
+        stats = np.empty((4, n_points, len(BAND_CHANNELS)))
+        with self._windows_lock:
+            windows = self._windows.copy()
+        ks = np.array([k1, k1_next, k2, k2_next], dtype=np.int64)
+        if reduce_points(np.ascontiguousarray(buffer), a, b, ks, sums, stats, windows) < 0:
+            return False
+        with self._windows_lock:
+            self._windows = windows
+        mean = sums / n
+        low, high = _interpolated(stats[0], stats[1], g1), _interpolated(stats[2], stats[3], g2)
+        self.mean[:, first + a:first + b] = mean.T
+        self.low[:, first + a:first + b] = low.T
+        self.high[:, first + a:first + b] = high.T
+        return True
 
     def _reduce(self, buffer: np.ndarray, first: int) -> None:
         """:meth:`add_chunk` on one block of grid points (all of ``buffer``)."""

@@ -1,0 +1,166 @@
+"""The seed bands' order statistics, compiled: each grid point's from a narrow window carried from the one before.
+
+The bands (:mod:`ddmr_cli.engine.bands`) need, at every grid point and channel, the mean over the runs and four
+order statistics: the two either side of the 5th percentile's virtual index and the two either side of the 95th's.
+numpy gets them by sorting the row of every run's value (or partitioning it), after a transpose of the engine's
+buffer: about 15 ns a value at 1,000 runs (a 1,000-value sort there is 12.6 ns a value; the transpose 6).
+
+Neighbouring grid points hold nearly the same distribution, shifted: every run moves on by a step or a few, and the
+whole population drifts together much more than it spreads. So the order statistics, taken relative to the mean,
+move little from one grid point to the next. :func:`reduce_points` keeps, per channel and percentile, a window of
+values ``[lo, hi]`` relative to the mean, and at the next point makes one pass over the runs: it counts the values
+below the window and keeps those inside. When the wanted ranks fall inside (``below <= k`` and ``below + inside >
+k + 1``), sorting the few values inside (by insertion: a dozen or two) gives exactly the order statistics, as a
+sort of the whole row would: every value below the window ranks below every value in it. Otherwise the window is
+widened and the pass made again, and if that misses too the row is sorted whole. The window for the next point is
+taken :data:`MARGIN` ranks out from the wanted ones (more at more runs), widened by half its span.
+
+The windows only decide how fast the answer comes, never what it is: the order statistics are exact, so the bands
+are the same to the bit as numpy's reduction (tests/test_band_windows.py), in any chunking and with any thread
+count. Measured on buffers of the engine's own runs (1,000 runs, smc_ndo and smc_ndo_nno): see
+:data:`~ddmr_cli.engine.bands.WINDOW_MIN_RUNS`. The mean is the sum over the runs in their order divided by the
+count, as numpy's ``mean(axis=0)`` of the buffer computes it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ddmr_cli.compiled import cached_law, law
+
+#: ranks kept either side of the wanted order statistics by the window carried to the next grid point (at least;
+#: ``n // MARGIN_FRACTION`` at n runs when that is more: ranks are denser at more runs)
+MARGIN = 4
+MARGIN_FRACTION = 256
+#: a window that missed is widened this many times its span either side, and counted again, up to ATTEMPTS
+#: windows a grid point; then the row is sorted whole
+WIDEN = 2.0
+ATTEMPTS = 4
+#: candidates sorted by insertion at most; more (ties, a wide window) by numba's sort
+INSERTION_MAX = 48
+
+
+@law
+def _sort(values, m):
+    """``values[:m]`` in ascending order, in place (finite values)."""
+    if m > INSERTION_MAX:
+        values[:m].sort()
+        return
+    for i in range(1, m):
+        v = values[i]
+        j = i - 1
+        while j >= 0 and values[j] > v:
+            values[j + 1] = values[j]
+            j -= 1
+        values[j + 1] = v
+
+
+@law
+def _window(ordered, base, m, k, k_next, margin, mean):
+    """The window for the next grid point around ranks ``k``, ``k_next``, relative to ``mean``: from the value
+    ``margin`` ranks below ``k`` to the one ``margin`` ranks above ``k_next`` (as far as ``ordered[:m]``, whose first
+    value has rank ``base``, reaches), widened by half their span either side."""
+    lo = ordered[max(k - margin - base, 0)]
+    hi = ordered[min(k_next + margin - base, m - 1)]
+    half = 0.5 * (hi - lo)
+    return lo - half - mean, hi + half - mean
+
+
+@law
+def _counts(column, n, lo1, hi1, lo2, hi2):
+    """How many values of ``column[:n]`` lie below ``lo1``, at most ``hi1``, below ``lo2`` and at most ``hi2``
+    (branch-free sums: LLVM vectorises the pass)."""
+    below1 = upto1 = below2 = upto2 = 0
+    for r in range(n):
+        v = column[r]
+        below1 += v < lo1
+        upto1 += v <= hi1
+        below2 += v < lo2
+        upto2 += v <= hi2
+    return below1, upto1, below2, upto2
+
+
+@law
+def _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2):
+    """The values of ``column[:n]`` inside ``[lo1, hi1]`` into ``inside1`` and those inside ``[lo2, hi2]`` into
+    ``inside2`` (``hi1 < lo2``), in run order."""
+    m1 = m2 = 0
+    for r in range(n):
+        v = column[r]
+        if (lo1 <= v) & (v <= hi2) & ((v <= hi1) | (lo2 <= v)):  # rare: one branch, well predicted
+            if v <= hi1:
+                inside1[m1] = v
+                m1 += 1
+            else:
+                inside2[m2] = v
+                m2 += 1
+    return m1, m2
+
+
+@law
+def _column(column, n, ks, mean, window, out, inside1, inside2, whole):
+    """The order statistics ``ks`` (k1, k1 + 1, k2, k2 + 1, clipped to n - 1; k1 <= k2) of ``column[:n]`` into
+    ``out``, by the windows ``window`` (lo1, hi1, lo2, hi2 relative to ``mean``; NaN: none), which it updates for
+    the next grid point. Returns how many windows missed (:data:`ATTEMPTS` when the row was sorted whole)."""
+    k1, k1b, k2, k2b = ks[0], ks[1], ks[2], ks[3]
+    margin = max(MARGIN, n // MARGIN_FRACTION)
+    lo1, hi1, lo2, hi2 = mean + window[0], mean + window[1], mean + window[2], mean + window[3]
+    for attempt in range(ATTEMPTS):
+        if not lo1 <= hi1 < lo2 <= hi2:  # NaN (no window yet), or windows that meet: sort the row
+            break
+        below1, upto1, below2, upto2 = _counts(column, n, lo1, hi1, lo2, hi2)
+        if below1 <= k1 and upto1 > k1b and below2 <= k2 and upto2 > k2b:
+            m1, m2 = _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2)
+            _sort(inside1, m1)
+            _sort(inside2, m2)
+            out[0], out[1] = inside1[k1 - below1], inside1[k1b - below1]
+            out[2], out[3] = inside2[k2 - below2], inside2[k2b - below2]
+            window[0], window[1] = _window(inside1, below1, m1, k1, k1b, margin, mean)
+            window[2], window[3] = _window(inside2, below2, m2, k2, k2b, margin, mean)
+            return attempt
+        # widen both windows, keeping them apart
+        span1, span2, gap = hi1 - lo1, hi2 - lo2, lo2 - hi1
+        lo1, hi1 = lo1 - WIDEN * span1, hi1 + min(WIDEN * span1, 0.5 * gap)
+        lo2, hi2 = lo2 - min(WIDEN * span2, 0.5 * gap), hi2 + WIDEN * span2
+    for r in range(n):
+        whole[r] = column[r]
+    _sort(whole, n)
+    out[0], out[1], out[2], out[3] = whole[k1], whole[k1b], whole[k2], whole[k2b]
+    window[0], window[1] = _window(whole, 0, n, k1, k1b, margin, mean)
+    window[2], window[3] = _window(whole, 0, n, k2, k2b, margin, mean)
+    return ATTEMPTS
+
+
+@cached_law
+def reduce_points(buffer, a, b, ks, sums, stats, windows):
+    """Reduce grid points ``a .. b - 1`` of ``buffer[run, point, channel]`` over the runs: ``sums[j, c]`` the sum of
+    point ``a + j``'s values in run order, ``stats[q, j, c]`` its order statistic ``ks[q]`` (module docstring);
+    ``windows[c]`` the carried windows (updated). Returns the number of missed passes, or -1, with nothing written,
+    when a value is not finite (the caller reduces that block by numpy's rules for diverged runs)."""
+    n, _, n_channels = buffer.shape
+    for r in range(n):
+        for j in range(a, b):
+            for c in range(n_channels):
+                if not math.isfinite(buffer[r, j, c]):
+                    return -1
+    columns = np.empty((n_channels, n))
+    inside1, inside2, whole, out = np.empty(n), np.empty(n), np.empty(n), np.empty(4)
+    missed = 0
+    for j in range(b - a):
+        for r in range(n):  # the point's values, one row per channel (each buffer row holds all its channels)
+            for c in range(n_channels):
+                columns[c, r] = buffer[r, a + j, c]
+        for c in range(n_channels):
+            column = columns[c]
+            total = 0.0
+            for r in range(n):
+                total += column[r]
+            sums[j, c] = total
+            missed += _column(column, n, ks, total / n, windows[c], out, inside1, inside2, whole)
+            stats[0, j, c], stats[1, j, c], stats[2, j, c], stats[3, j, c] = out[0], out[1], out[2], out[3]
+    return missed
+
+
+__all__ = ["ATTEMPTS", "MARGIN", "MARGIN_FRACTION", "WIDEN", "reduce_points"]
