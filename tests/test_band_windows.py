@@ -92,6 +92,11 @@ def test_every_run_equal_and_a_single_run(monkeypatch):
     assert_same_bits(reduced(one, 0, monkeypatch=monkeypatch), reduced(one, 10**9, monkeypatch=monkeypatch))
 
 
+def work(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The pass's working memory for n runs: one row per channel, and three rows of scratch."""
+    return np.empty((C, n)), np.empty((3, n))
+
+
 def _order_statistics(n: int) -> np.ndarray:
     ks = []
     for p in (bands.LOW, bands.HIGH):
@@ -110,7 +115,7 @@ def test_wrong_windows_change_only_the_speed(windows):
              "far": np.tile([1e6, 2e6, 3e6, 4e6], (C, 1)), "random": rng.standard_normal((C, 4))}[windows]
     ks = _order_statistics(800)
     sums, stats = np.empty((12, C)), np.empty((4, 12, C))
-    assert reduce_points(buffer, 0, 12, ks, sums, stats, start.copy()) >= 0
+    assert reduce_points(buffer, 0, 12, ks, sums, stats, start.copy(), *work(800)) >= 0
     ordered = np.sort(buffer, axis=0)
     for q, k in enumerate(ks):
         assert stats[q].tobytes() == ordered[k].tobytes()
@@ -123,9 +128,10 @@ def test_windows_carried_relative_to_the_mean_hit_on_drifting_runs():
     1 % of the windows miss). Windows carried as absolute values would miss at nearly every point."""
     n_runs, points = 1000, 300
     buffer, ks, windows = drifting_runs(n_runs, points, seed=11), _order_statistics(n_runs), np.full((C, 4), np.nan)
-    first = reduce_points(buffer, 0, 1, ks, np.empty((1, C)), np.empty((4, 1, C)), windows)
+    first = reduce_points(buffer, 0, 1, ks, np.empty((1, C)), np.empty((4, 1, C)), windows, *work(n_runs))
     assert first == ATTEMPTS * C  # no windows yet: every row of the first point sorted whole
-    missed = reduce_points(buffer, 1, points, ks, np.empty((points - 1, C)), np.empty((4, points - 1, C)), windows)
+    missed = reduce_points(buffer, 1, points, ks, np.empty((points - 1, C)), np.empty((4, points - 1, C)), windows,
+                           *work(n_runs))
     assert 0 <= missed <= 0.01 * points * C
 
 
@@ -137,7 +143,7 @@ def test_a_diverged_run_leaves_the_block_to_numpy(monkeypatch):
     buffer[3, 12:, 2] = np.inf
     windows = np.full((C, 4), np.nan)
     assert reduce_points(buffer, 0, 20, _order_statistics(500), np.empty((20, C)), np.empty((4, 20, C)),
-                         windows) == -1
+                         windows, *work(500)) == -1
     windowed = reduced(buffer, 0, chunk=8, monkeypatch=monkeypatch)
     assert_same_bits(windowed, reduced(buffer, 10**9, chunk=8, monkeypatch=monkeypatch))
     assert np.isfinite(windowed.mean).all()

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from ddmr_cli.compiled import cached_law, law
+from ddmr_cli.compiled import law, no_allocation_law
 
 #: ranks kept either side of the wanted order statistics by the window carried to the next grid point (at least;
 #: ``n // MARGIN_FRACTION`` at n runs when that is more: ranks are denser at more runs)
@@ -38,23 +38,44 @@ MARGIN_FRACTION = 256
 #: windows a grid point; then the row is sorted whole
 WIDEN = 2.0
 ATTEMPTS = 4
-#: candidates sorted by insertion at most; more (ties, a wide window) by numba's sort
+#: candidates sorted by insertion at most; more (ties, a wide window, a whole row) by heapsort
 INSERTION_MAX = 48
 
 
 @law
 def _sort(values, m):
-    """``values[:m]`` in ascending order, in place (finite values)."""
-    if m > INSERTION_MAX:
-        values[:m].sort()
+    """``values[:m]`` in ascending order, in place (finite values): by insertion up to :data:`INSERTION_MAX` values
+    (a window's dozen or two), else by heapsort (a wide window, ties, or a row sorted whole). Neither allocates, so
+    the pass runs without numba's allocator (loading a compiled function that allocates costs a process megabytes)."""
+    if m <= INSERTION_MAX:
+        for i in range(1, m):
+            v = values[i]
+            j = i - 1
+            while j >= 0 and values[j] > v:
+                values[j + 1] = values[j]
+                j -= 1
+            values[j + 1] = v
         return
-    for i in range(1, m):
-        v = values[i]
-        j = i - 1
-        while j >= 0 and values[j] > v:
-            values[j + 1] = values[j]
-            j -= 1
-        values[j + 1] = v
+    for start in range(m // 2 - 1, -1, -1):
+        _sift_down(values, start, m)
+    for end in range(m - 1, 0, -1):
+        values[0], values[end] = values[end], values[0]
+        _sift_down(values, 0, end)
+
+
+@law
+def _sift_down(values, root, end):
+    """Heapsort's sift: move ``values[root]`` down the max-heap ``values[:end]`` to its place."""
+    while True:
+        child = 2 * root + 1
+        if child >= end:
+            return
+        if child + 1 < end and values[child] < values[child + 1]:
+            child += 1
+        if values[root] >= values[child]:
+            return
+        values[root], values[child] = values[child], values[root]
+        root = child
 
 
 @law
@@ -100,10 +121,10 @@ def _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2):
 
 
 @law
-def _column(column, n, ks, mean, window, out, inside1, inside2, whole):
-    """The order statistics ``ks`` (k1, k1 + 1, k2, k2 + 1, clipped to n - 1; k1 <= k2) of ``column[:n]`` into
-    ``out``, by the windows ``window`` (lo1, hi1, lo2, hi2 relative to ``mean``; NaN: none), which it updates for
-    the next grid point. Returns how many windows missed (:data:`ATTEMPTS` when the row was sorted whole)."""
+def _column(column, n, ks, mean, window, inside1, inside2, whole):
+    """The order statistics ``ks`` (k1, k1 + 1, k2, k2 + 1, clipped to n - 1; k1 <= k2) of ``column[:n]``, by the
+    windows ``window`` (lo1, hi1, lo2, hi2 relative to ``mean``; NaN: none), which it updates for the next grid
+    point. Returns the four statistics and how many windows missed (:data:`ATTEMPTS`: the row was sorted whole)."""
     k1, k1b, k2, k2b = ks[0], ks[1], ks[2], ks[3]
     margin = max(MARGIN, n // MARGIN_FRACTION)
     lo1, hi1, lo2, hi2 = mean + window[0], mean + window[1], mean + window[2], mean + window[3]
@@ -115,11 +136,10 @@ def _column(column, n, ks, mean, window, out, inside1, inside2, whole):
             m1, m2 = _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2)
             _sort(inside1, m1)
             _sort(inside2, m2)
-            out[0], out[1] = inside1[k1 - below1], inside1[k1b - below1]
-            out[2], out[3] = inside2[k2 - below2], inside2[k2b - below2]
             window[0], window[1] = _window(inside1, below1, m1, k1, k1b, margin, mean)
             window[2], window[3] = _window(inside2, below2, m2, k2, k2b, margin, mean)
-            return attempt
+            return (inside1[k1 - below1], inside1[k1b - below1], inside2[k2 - below2], inside2[k2b - below2],
+                    attempt)
         # widen both windows, keeping them apart
         span1, span2, gap = hi1 - lo1, hi2 - lo2, lo2 - hi1
         lo1, hi1 = lo1 - WIDEN * span1, hi1 + min(WIDEN * span1, 0.5 * gap)
@@ -127,26 +147,25 @@ def _column(column, n, ks, mean, window, out, inside1, inside2, whole):
     for r in range(n):
         whole[r] = column[r]
     _sort(whole, n)
-    out[0], out[1], out[2], out[3] = whole[k1], whole[k1b], whole[k2], whole[k2b]
     window[0], window[1] = _window(whole, 0, n, k1, k1b, margin, mean)
     window[2], window[3] = _window(whole, 0, n, k2, k2b, margin, mean)
-    return ATTEMPTS
+    return whole[k1], whole[k1b], whole[k2], whole[k2b], ATTEMPTS
 
 
-@cached_law
-def reduce_points(buffer, a, b, ks, sums, stats, windows):
+@no_allocation_law
+def reduce_points(buffer, a, b, ks, sums, stats, windows, columns, scratch):
     """Reduce grid points ``a .. b - 1`` of ``buffer[run, point, channel]`` over the runs: ``sums[j, c]`` the sum of
     point ``a + j``'s values in run order, ``stats[q, j, c]`` its order statistic ``ks[q]`` (module docstring);
-    ``windows[c]`` the carried windows (updated). Returns the number of missed passes, or -1, with nothing written,
-    when a value is not finite (the caller reduces that block by numpy's rules for diverged runs)."""
+    ``windows[c]`` the carried windows (updated); ``columns`` ``(channels, runs)`` and ``scratch`` ``(3, runs)``
+    the pass's working memory. Returns the number of windows that missed, or -1, with nothing written, when a value
+    is not finite (the caller reduces that block by numpy's rules for diverged runs)."""
     n, _, n_channels = buffer.shape
     for r in range(n):
         for j in range(a, b):
             for c in range(n_channels):
                 if not math.isfinite(buffer[r, j, c]):
                     return -1
-    columns = np.empty((n_channels, n))
-    inside1, inside2, whole, out = np.empty(n), np.empty(n), np.empty(n), np.empty(4)
+    inside1, inside2, whole = scratch[0], scratch[1], scratch[2]
     missed = 0
     for j in range(b - a):
         for r in range(n):  # the point's values, one row per channel (each buffer row holds all its channels)
@@ -158,8 +177,9 @@ def reduce_points(buffer, a, b, ks, sums, stats, windows):
             for r in range(n):
                 total += column[r]
             sums[j, c] = total
-            missed += _column(column, n, ks, total / n, windows[c], out, inside1, inside2, whole)
-            stats[0, j, c], stats[1, j, c], stats[2, j, c], stats[3, j, c] = out[0], out[1], out[2], out[3]
+            s0, s1, s2, s3, attempts = _column(column, n, ks, total / n, windows[c], inside1, inside2, whole)
+            stats[0, j, c], stats[1, j, c], stats[2, j, c], stats[3, j, c] = s0, s1, s2, s3
+            missed += attempts
     return missed
 
 

@@ -178,7 +178,8 @@ class BandAccumulator:
         with self._windows_lock:
             windows = self._windows.copy()
         ks = np.array([k1, k1_next, k2, k2_next], dtype=np.int64)
-        if reduce_points(np.ascontiguousarray(buffer), a, b, ks, sums, stats, windows) < 0:
+        columns, scratch = np.empty((len(BAND_CHANNELS), n)), np.empty((3, n))
+        if reduce_points(np.ascontiguousarray(buffer), a, b, ks, sums, stats, windows, columns, scratch) < 0:
             return False
         with self._windows_lock:
             self._windows = windows
