@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from ddmr_cli.compiled import jit_enabled
 from ddmr_cli.engine import bands
-from ddmr_cli.engine.band_windows import ATTEMPTS, reduce_points
+from ddmr_cli.engine.band_windows import reduce_points
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 
 pytestmark = pytest.mark.skipif(not jit_enabled(), reason="the windowed pass runs compiled only (numba installed)")
@@ -128,8 +128,7 @@ def test_windows_carried_relative_to_the_mean_hit_on_drifting_runs():
     1 % of the windows miss). Windows carried as absolute values would miss at nearly every point."""
     n_runs, points = 1000, 300
     buffer, ks, windows = drifting_runs(n_runs, points, seed=11), _order_statistics(n_runs), np.full((C, 4), np.nan)
-    first = reduce_points(buffer, 0, 1, ks, np.empty((1, C)), np.empty((4, 1, C)), windows, *work(n_runs))
-    assert first == ATTEMPTS * C  # no windows yet: every row of the first point sorted whole
+    assert reduce_points(buffer, 0, 1, ks, np.empty((1, C)), np.empty((4, 1, C)), windows, *work(n_runs)) >= 0
     missed = reduce_points(buffer, 1, points, ks, np.empty((points - 1, C)), np.empty((4, points - 1, C)), windows,
                            *work(n_runs))
     assert 0 <= missed <= 0.01 * points * C
@@ -164,3 +163,20 @@ def test_the_engines_bands_are_the_same_with_the_windowed_pass(threads, monkeypa
     assert results["numpy"].keys() == results["windowed"].keys()
     for key, values in results["numpy"].items():
         assert values.tobytes() == results["windowed"][key].tobytes(), key
+
+
+def test_windows_from_a_sample_hold_the_ranks_without_a_window_carried():
+    """The first grid point of a call (no windows carried yet, or stale ones from another thread's range): windows
+    from a sample of 64 runs hold both percentiles' ranks at the first try in most rows (here: at least 80 % of 300
+    rows of 1,000 runs), so a row is seldom sorted whole."""
+    from ddmr_cli.engine.band_windows import _sample_windows, _search
+
+    rng = np.random.default_rng(2)
+    ks = _order_statistics(1000)
+    inside1, inside2, sample = np.empty(1000), np.empty(1000), np.empty(1000)
+    hits = 0
+    for _ in range(300):
+        column = rng.standard_normal(1000) * rng.uniform(0.1, 10.0) + rng.uniform(-5.0, 5.0)
+        lo1, hi1, lo2, hi2 = _sample_windows(column, 1000, ks, sample)
+        hits += _search(column, 1000, ks, lo1, hi1, lo2, hi2, 1, inside1, inside2)[0]
+    assert hits >= 0.8 * 300

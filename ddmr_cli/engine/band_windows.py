@@ -8,12 +8,15 @@ buffer: about 15 ns a value at 1,000 runs (a 1,000-value sort there is 12.6 ns a
 Neighbouring grid points hold nearly the same distribution, shifted: every run moves on by a step or a few, and the
 whole population drifts together much more than it spreads. So the order statistics, taken relative to the mean,
 move little from one grid point to the next. :func:`reduce_points` keeps, per channel and percentile, a window of
-values ``[lo, hi]`` relative to the mean, and at the next point makes one pass over the runs: it counts the values
-below the window and keeps those inside. When the wanted ranks fall inside (``below <= k`` and ``below + inside >
-k + 1``), sorting the few values inside (by insertion: a dozen or two) gives exactly the order statistics, as a
-sort of the whole row would: every value below the window ranks below every value in it. Otherwise the window is
-widened and the pass made again, and if that misses too the row is sorted whole. The window for the next point is
-taken :data:`MARGIN` ranks out from the wanted ones (more at more runs), widened by half its span.
+values ``[lo, hi]`` relative to the mean, and at the next point counts the values below each window and up to its
+top (a branch-free pass LLVM vectorises). When the wanted ranks fall inside (``below <= k`` and ``up to top >
+k + 1``), a second pass collects the values inside, and sorting those few (by insertion: a dozen or two) gives
+exactly the order statistics, as a sort of the whole row would: every value below the window ranks below every
+value in it. Otherwise the window is
+widened and counted again; where no window was carried or it still misses (the first grid point of a call, which
+a second thread may start in the middle of a chunk, or a jump), windows are taken from a sample of 64 runs; and if
+those miss too the row is sorted whole. The window for the next point is taken :data:`MARGIN` ranks out from the
+wanted ones (more at more runs), widened by half its span.
 
 The windows only decide how fast the answer comes, never what it is: the order statistics are exact, so the bands
 are the same to the bit as numpy's reduction (tests/test_band_windows.py), in any chunking and with any thread
@@ -38,6 +41,13 @@ MARGIN_FRACTION = 256
 #: windows a grid point; then the row is sorted whole
 WIDEN = 2.0
 ATTEMPTS = 4
+#: without carried windows, or when they miss ATTEMPTS times (the first grid point of a call, a jump), windows come
+#: from a sample of this many runs, evenly spaced, SAMPLE_SLACK sample values out either side of each wanted rank,
+#: tried SAMPLE_ATTEMPTS times (widened as above), from SAMPLE_MIN_RUNS runs on; then the row is sorted whole
+SAMPLE = 64
+SAMPLE_SLACK = 3
+SAMPLE_ATTEMPTS = 2
+SAMPLE_MIN_RUNS = 4 * SAMPLE
 #: candidates sorted by insertion at most; more (ties, a wide window, a whole row) by heapsort
 INSERTION_MAX = 48
 
@@ -121,35 +131,77 @@ def _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2):
 
 
 @law
-def _column(column, n, ks, mean, window, inside1, inside2, whole):
-    """The order statistics ``ks`` (k1, k1 + 1, k2, k2 + 1, clipped to n - 1; k1 <= k2) of ``column[:n]``, by the
-    windows ``window`` (lo1, hi1, lo2, hi2 relative to ``mean``; NaN: none), which it updates for the next grid
-    point. Returns the four statistics and how many windows missed (:data:`ATTEMPTS`: the row was sorted whole)."""
+def _search(column, n, ks, lo1, hi1, lo2, hi2, tries, inside1, inside2):
+    """Count ``column[:n]`` against the windows, widening them after a miss, up to ``tries`` times; on a hit, collect
+    the values inside. Returns (hit, values below the first window, inside it, below the second, inside it, windows
+    that missed). Windows that are NaN or meet (``hi1 >= lo2``) are not tried."""
     k1, k1b, k2, k2b = ks[0], ks[1], ks[2], ks[3]
-    margin = max(MARGIN, n // MARGIN_FRACTION)
-    lo1, hi1, lo2, hi2 = mean + window[0], mean + window[1], mean + window[2], mean + window[3]
-    for attempt in range(ATTEMPTS):
-        if not lo1 <= hi1 < lo2 <= hi2:  # NaN (no window yet), or windows that meet: sort the row
-            break
+    for attempt in range(tries):
+        if not lo1 <= hi1 < lo2 <= hi2:
+            return False, 0, 0, 0, 0, attempt
         below1, upto1, below2, upto2 = _counts(column, n, lo1, hi1, lo2, hi2)
         if below1 <= k1 and upto1 > k1b and below2 <= k2 and upto2 > k2b:
             m1, m2 = _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2)
-            _sort(inside1, m1)
-            _sort(inside2, m2)
-            window[0], window[1] = _window(inside1, below1, m1, k1, k1b, margin, mean)
-            window[2], window[3] = _window(inside2, below2, m2, k2, k2b, margin, mean)
-            return (inside1[k1 - below1], inside1[k1b - below1], inside2[k2 - below2], inside2[k2b - below2],
-                    attempt)
+            return True, below1, m1, below2, m2, attempt
         # widen both windows, keeping them apart
         span1, span2, gap = hi1 - lo1, hi2 - lo2, lo2 - hi1
         lo1, hi1 = lo1 - WIDEN * span1, hi1 + min(WIDEN * span1, 0.5 * gap)
         lo2, hi2 = lo2 - min(WIDEN * span2, 0.5 * gap), hi2 + WIDEN * span2
+    return False, 0, 0, 0, 0, tries
+
+
+@law
+def _sampled(sample, i):
+    """The sample's value of rank ``i``: -inf below the first, inf past the last."""
+    if i < 0:
+        return -math.inf
+    if i >= SAMPLE:
+        return math.inf
+    return sample[i]
+
+
+@law
+def _sample_windows(column, n, ks, sample):
+    """Windows from a sample: :data:`SAMPLE` values evenly spaced over the runs, sorted, and from each wanted rank's
+    place among them :data:`SAMPLE_SLACK` sample values out either side (absolute values, not relative)."""
+    for i in range(SAMPLE):
+        sample[i] = column[(i * n) // SAMPLE]
+    _sort(sample, SAMPLE)
+    lo1 = _sampled(sample, (ks[0] * SAMPLE) // n - SAMPLE_SLACK)
+    hi1 = _sampled(sample, (ks[1] * SAMPLE) // n + 1 + SAMPLE_SLACK)
+    lo2 = _sampled(sample, (ks[2] * SAMPLE) // n - SAMPLE_SLACK)
+    hi2 = _sampled(sample, (ks[3] * SAMPLE) // n + 1 + SAMPLE_SLACK)
+    return lo1, hi1, lo2, hi2
+
+
+@law
+def _column(column, n, ks, mean, window, inside1, inside2, whole):
+    """The order statistics ``ks`` (k1, k1 + 1, k2, k2 + 1, clipped to n - 1; k1 <= k2) of ``column[:n]``, by the
+    windows ``window`` (lo1, hi1, lo2, hi2 relative to ``mean``; NaN: none), which it updates for the next grid
+    point: the carried windows (widened after a miss), then, from :data:`SAMPLE_MIN_RUNS` runs, windows from a
+    sample, then a sort of the whole row. Returns the four statistics and how many windows missed (a whole sort
+    counts one more)."""
+    k1, k1b, k2, k2b = ks[0], ks[1], ks[2], ks[3]
+    margin = max(MARGIN, n // MARGIN_FRACTION)
+    hit, below1, m1, below2, m2, missed = _search(column, n, ks, mean + window[0], mean + window[1],
+                                                  mean + window[2], mean + window[3], ATTEMPTS, inside1, inside2)
+    if not hit and n >= SAMPLE_MIN_RUNS:
+        lo1, hi1, lo2, hi2 = _sample_windows(column, n, ks, whole)
+        hit, below1, m1, below2, m2, more = _search(column, n, ks, lo1, hi1, lo2, hi2, SAMPLE_ATTEMPTS, inside1,
+                                                    inside2)
+        missed += more
+    if hit:
+        _sort(inside1, m1)
+        _sort(inside2, m2)
+        window[0], window[1] = _window(inside1, below1, m1, k1, k1b, margin, mean)
+        window[2], window[3] = _window(inside2, below2, m2, k2, k2b, margin, mean)
+        return inside1[k1 - below1], inside1[k1b - below1], inside2[k2 - below2], inside2[k2b - below2], missed
     for r in range(n):
         whole[r] = column[r]
     _sort(whole, n)
     window[0], window[1] = _window(whole, 0, n, k1, k1b, margin, mean)
     window[2], window[3] = _window(whole, 0, n, k2, k2b, margin, mean)
-    return whole[k1], whole[k1b], whole[k2], whole[k2b], ATTEMPTS
+    return whole[k1], whole[k1b], whole[k2], whole[k2b], missed + 1
 
 
 @no_allocation_law
@@ -183,4 +235,5 @@ def reduce_points(buffer, a, b, ks, sums, stats, windows, columns, scratch):
     return missed
 
 
-__all__ = ["ATTEMPTS", "MARGIN", "MARGIN_FRACTION", "WIDEN", "reduce_points"]
+__all__ = ["ATTEMPTS", "MARGIN", "MARGIN_FRACTION", "SAMPLE", "SAMPLE_ATTEMPTS", "SAMPLE_MIN_RUNS", "SAMPLE_SLACK",
+           "WIDEN", "reduce_points"]
