@@ -73,7 +73,8 @@ def test_config_repository_answers_group_questions():
 def test_a_worker_scans_hydras_plugins_once():
     """A launcher's worker restores Hydra's state for every job (Singleton.set_state), which scanned every
     hydra_plugins module again (new plugin classes each time); once the sweep's loader is unpickled in the worker
-    (cache_plugin_scan) the scan is made once and every job gets the same classes.
+    (cache_plugin_scan) the scan is made once and every job gets the same classes. The worker also emits its jobs'
+    .hydra files by libyaml from then on (libyaml_for_omegaconf).
 
     Run in a fresh interpreter, as a worker is: each scan re-executes Hydra's plugin modules in place, so doing it
     in the test process would leave later tests with config sources whose classes are no longer the modules'."""
@@ -84,6 +85,9 @@ def test_a_worker_scans_hydras_plugins_once():
         from ddmr_cli.config.compose_once import SweepConfigLoader
 
         pickle.loads(pickle.dumps(SweepConfigLoader(None)))  # what a worker does with each batch of jobs
+        import yaml, omegaconf.omegaconf
+        libyaml = getattr(omegaconf.omegaconf.get_omega_conf_dumper, "ddmr_libyaml", False)
+        assert libyaml == yaml.__with_libyaml__, "the worker's .hydra files are not emitted by libyaml"
         Singleton.set_state(Singleton.get_state())
         first = dict(Plugins.instance().class_name_to_class)
         Singleton.set_state(Singleton.get_state())
@@ -120,3 +124,39 @@ def test_run_hydra_job_is_hydras_per_job_work(tmp_path):
 
     with pytest.raises(Exception, match="boom"):
         compat.run_hydra_job(failing, cfg)
+
+
+def test_libyaml_for_omegaconf_emits_the_same_data_and_is_put_back():
+    """OmegaConf.to_yaml through libyaml (what Hydra writes each job's .hydra files with, in ddmr's sweep workers and
+    runs) reads back as the same data as through OmegaConf's own emitter: the strings OmegaConf's representer quotes
+    (those that would read back as a bool, int or float), None, unicode, long strings with newlines and escapes (the
+    two emitters fold those at other places), interpolations, and a job's whole hydra node. A second install does
+    nothing; the restore puts OmegaConf's emitter back. Without libyaml in PyYAML, nothing is installed. ("1e3" is a
+    string to PyYAML but a float to OmegaConf's loader: OmegaConf's representer quotes it, PyYAML's would not.)"""
+    import omegaconf.omegaconf as module
+    import yaml
+    from omegaconf._utils import OmegaConfDumper
+
+    from ddmr_cli.config import compose_config
+
+    tricky = OmegaConf.create({"bool": "true", "yes": "yes", "int": "12", "float": "1.5e3", "sci": "1e3", "none": None,
+                               "empty": "",
+                               "unicode": "Zürich ± 5 %", "interp": "${bool}", "nested": {"list": [1, "2", None]},
+                               "long": "Examples:\n  ddmr run   " * 20 + "\ttab \"quote\""})
+    job = compose_config(["run.n_runs=1"], return_hydra_config=True).hydra
+    configs = [tricky, OmegaConf.create({"hydra": job})]
+    plain = [OmegaConf.to_yaml(cfg) for cfg in configs]
+    restore = compat.libyaml_for_omegaconf()
+    try:
+        installed = module.get_omega_conf_dumper()
+        fast = [OmegaConf.to_yaml(cfg) for cfg in configs]
+        compat.libyaml_for_omegaconf()()  # installed already: its restore does nothing
+        assert module.get_omega_conf_dumper() is installed
+    finally:
+        restore()
+    assert module.get_omega_conf_dumper() is OmegaConfDumper
+    assert issubclass(installed, yaml.CDumper) == bool(yaml.__with_libyaml__)
+    for cfg, a, b in zip(configs, plain, fast):  # read back by PyYAML and by OmegaConf's own loader (YAML 1.2 floats)
+        assert yaml.safe_load(b) == yaml.safe_load(a) == OmegaConf.to_container(cfg)
+        assert OmegaConf.to_container(OmegaConf.create(b)) == OmegaConf.to_container(cfg)
+    assert OmegaConf.create(fast[0]).sci == "1e3"  # a string OmegaConf would read as a float is quoted

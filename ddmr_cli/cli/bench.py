@@ -194,8 +194,9 @@ def host_ceiling(cores: int, iterations: int, repeats: int = REPEATS,
 
 def hydra_job_floor(repeats: int) -> tuple[float, float]:
     """Hydra's own work per job in ms of one core, min and median of ``repeats``: ``hydra.core.utils.run_job``
-    (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files) around a task
-    that does nothing (:func:`ddmr_cli.compat.run_hydra_job`), on section 3b's job config, in this process."""
+    (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files, emitted by
+    libyaml as in ddmr's workers: :func:`ddmr_cli.compat.libyaml_for_omegaconf`) around a task that does nothing
+    (:func:`ddmr_cli.compat.run_hydra_job`), on section 3b's job config, in this process."""
     import copy
     import statistics
 
@@ -205,14 +206,18 @@ def hydra_job_floor(repeats: int) -> tuple[float, float]:
     base = compose_config(["run.n_runs=1", "simulation.duration=0.2", "run.plots=false", "run.progress=false"],
                           return_hydra_config=True)
     times = []
-    with tempfile.TemporaryDirectory(prefix="ddmr-bench-") as tmp:
-        base.hydra.sweep.dir = tmp
-        for i in range(repeats + 1):  # the first one warms up
-            cfg = copy.deepcopy(base)  # a job's own config (Hydra makes the one it ran read-only)
-            cfg.hydra.sweep.subdir = str(i)
-            started = time.perf_counter()
-            compat.run_hydra_job(lambda task_cfg: None, cfg)
-            times.append(1000.0 * (time.perf_counter() - started))
+    restore_yaml = compat.libyaml_for_omegaconf()
+    try:
+        with tempfile.TemporaryDirectory(prefix="ddmr-bench-") as tmp:
+            base.hydra.sweep.dir = tmp
+            for i in range(repeats + 1):  # the first one warms up
+                cfg = copy.deepcopy(base)  # a job's own config (Hydra makes the one it ran read-only)
+                cfg.hydra.sweep.subdir = str(i)
+                started = time.perf_counter()
+                compat.run_hydra_job(lambda task_cfg: None, cfg)
+                times.append(1000.0 * (time.perf_counter() - started))
+    finally:
+        restore_yaml()
     return min(times[1:]), statistics.median(times[1:])
 
 

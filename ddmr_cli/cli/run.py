@@ -132,17 +132,22 @@ def cmd_run(argv: list[str]) -> int:
     if INFO_FLAGS & flags.keys():  # no job runs: Hydra prints what was asked for
         return hydra(argv, completing=bool({"-sc", "--shell-completion"} & flags.keys()))
     argv, config_dir, search_dir = config_dirs(argv)
+    from ddmr_cli.compat import libyaml_for_omegaconf
     from ddmr_cli.config.compose_once import compositions_once
 
-    with compositions_once():  # our validation, Hydra's get_mode and its run compose the config once (issue 28)
-        try:
-            launch = prepare(argv, overrides, multirun, config_name, config_dir, search_dir)
-        except UsageError as exc:
-            return fail(str(exc))
-        except OSError as exc:  # a fault found while planning (an unreadable study storage): one line, exit 1
-            print(f"ddmr: error: {exc}", file=sys.stderr)
-            return EXIT_FAILED
-        return run_locked(launch)
+    restore_yaml = libyaml_for_omegaconf()  # the jobs' .hydra files that Hydra writes in this process
+    try:
+        with compositions_once():  # our validation, Hydra's get_mode and its run compose the config once (issue 28)
+            try:
+                launch = prepare(argv, overrides, multirun, config_name, config_dir, search_dir)
+            except UsageError as exc:
+                return fail(str(exc))
+            except OSError as exc:  # a fault found while planning (an unreadable study storage): one line, exit 1
+                print(f"ddmr: error: {exc}", file=sys.stderr)
+                return EXIT_FAILED
+            return run_locked(launch)
+    finally:
+        restore_yaml()
 
 
 def run_locked(launch: Launch) -> int:
