@@ -429,3 +429,56 @@ def test_the_plant_schema_names_every_field_the_physics_plant_reads():
                          (schema.ContactSchema, model.ContactConfig),
                          (schema.PlantDivergenceSchema, model.DivergenceConfig)]:
         assert names(ours) == names(theirs), ours.__name__
+
+
+def test_hydras_check_composes_only_what_ddmrs_plan_did_not_validate():
+    """hydra/sweeper=ddmr: Hydra's check that a batch's jobs compose skips the jobs ddmr's plan validated in this
+    process, but for the first job of each set of group choices (its skeleton, which the workers derive the set's
+    jobs from); a job ddmr did not validate, or one composed in full, is checked as Hydra checks it."""
+    from types import SimpleNamespace
+
+    from hydra_plugins.ddmr_sweeper.ddmr_sweeper import DdmrSweeper
+
+    from ddmr_cli.config.compose_once import compositions_once
+
+    checked: list[list[str]] = []
+    batches = [[["controller=pid", "run.base_seed=0"], ["controller=pid", "run.base_seed=1"],
+                ["controller=smc", "run.base_seed=0"], ["controller=smc", "run.base_seed=1"]],
+               [["controller=pid", "run.base_seed=2"], ["controller=smc", "run.base_seed=9"],
+                ["+full=1", "run.base_seed=3"], ["+full=1", "run.base_seed=4"]]]
+
+    def skeleton_of(master, job):  # the group choice; None: a job composed in full
+        return None if job[0].startswith("+full") else (job[0],)
+
+    def sweep(arguments):  # Hydra's basic sweep, as far as the check goes: each batch checked, then launched
+        for batch in batches:
+            sweeper.basic.validate_batch_is_legal(batch)
+
+    sweeper = DdmrSweeper()
+    sweeper.basic = SimpleNamespace(validate_batch_is_legal=lambda batch: checked.extend(batch), sweep=sweep,
+                                    config=None, hydra_context=SimpleNamespace(
+                                        config_loader=SimpleNamespace(skeleton_of=skeleton_of)))
+    with compositions_once() as memo:
+        memo.validated_jobs.update(tuple(job) for batch in batches for job in batch if job != batches[1][1])
+        sweeper.sweep([])
+    assert checked == [["controller=pid", "run.base_seed=0"], ["controller=smc", "run.base_seed=0"],
+                       ["controller=smc", "run.base_seed=9"],  # not validated by ddmr
+                       ["+full=1", "run.base_seed=3"], ["+full=1", "run.base_seed=4"]]
+
+
+def test_a_sweeps_jobs_are_composed_once_by_hydras_check(tmp_path, monkeypatch):
+    """Through `ddmr run -m` (ddmr's plan validates every job): Hydra's check composes one job of a sweep of one
+    set of group choices, not each of them, and the sweep completes."""
+    from hydra.plugins.sweeper import Sweeper
+
+    from ddmr_cli.cli.main import main
+
+    checked: list = []
+    original = Sweeper.validate_batch_is_legal
+    monkeypatch.setattr(Sweeper, "validate_batch_is_legal", lambda self, batch: (checked.extend(batch),
+                                                                                 original(self, batch)))
+    code = main(["run", "-m", "run.n_runs=1", "simulation.duration=0.05", "run.base_seed=range(0,5)",
+                 "run.plots=false", "run.progress=false", "report.auto=false", f"hydra.sweep.dir={tmp_path / 's'}"])
+    assert code == 0
+    assert len(checked) == 1
+    assert len(list((tmp_path / "s").glob("*/metrics.csv"))) == 5

@@ -152,13 +152,23 @@ class SweepConfigLoader:
     def _is_group(self, key: str) -> bool:
         return self._skeletons.is_group(key, lambda: config_repository(self.inner))
 
+    def _split(self, master_config: DictConfig, sweep_overrides: list[str]):
+        """A job's parsed overrides (the sweep's ``hydra`` overrides first) and their split into group choices and
+        values (:func:`split_overrides`; None: the job is composed in full)."""
+        overrides = [*OmegaConf.to_container(master_config.hydra.overrides.hydra), *sweep_overrides]
+        parsed = self._skeletons.parse(overrides)
+        return parsed, split_overrides(parsed, self._is_group)
+
+    def skeleton_of(self, master_config: DictConfig, sweep_overrides: list[str]) -> tuple[str, ...] | None:
+        """The group choices whose composition (skeleton) a job is derived from; None for a job composed in full."""
+        split = self._split(master_config, sweep_overrides)[1]
+        return None if split is None else tuple(o.input_line for o in split[0])
+
     def load_sweep_config(self, master_config: DictConfig, sweep_overrides: list[str]) -> DictConfig:
         """The config of one job: Hydra's ``ConfigLoaderImpl.load_sweep_config``, the same config."""
         from hydra.types import RunMode
 
-        overrides = [*OmegaConf.to_container(master_config.hydra.overrides.hydra), *sweep_overrides]
-        parsed = self._skeletons.parse(overrides)
-        split = split_overrides(parsed, self._is_group)
+        parsed, split = self._split(master_config, sweep_overrides)
         if split is None:
             return self.inner.load_sweep_config(master_config, sweep_overrides)
         structure, values = split
@@ -198,6 +208,8 @@ class CompositionMemo(OverrideParser):
         self._kept: dict[tuple, tuple[bool, bytes, bool]] = {}
         #: compositions Hydra made in this memo (not loaded from ddmr's cache)
         self.composed = 0
+        #: the override lists of the jobs ddmr's plan composed and validated in this context (:func:`validated_jobs`)
+        self.validated_jobs: set[tuple[str, ...]] = set()
 
     def _tree_and_values(self, loader, parsed: list) -> tuple[tuple[str, ...], list]:
         """The override lines the composition is made from, and the value overrides applied to each copy."""
@@ -267,6 +279,16 @@ def _record_process(cfg: DictConfig) -> None:
     with open_dict(cfg.hydra):
         for name in cfg.hydra.job.env_copy:
             cfg.hydra.job.env_set[name] = os.environ[name]
+
+
+def validated_jobs() -> frozenset[tuple[str, ...]]:
+    """The override lists of the jobs ddmr's plan has composed and validated within the active
+    :func:`compositions_once` context (``ddmr run``'s), each as Hydra's sweeper lists it; empty outside one. Hydra's
+    sweeper need not compose these again to check that they compose (``hydra_plugins/ddmr_sweeper``)."""
+    from ddmr_cli.compat import current_load
+
+    active = getattr(current_load(), "__self__", None)
+    return frozenset(active.validated_jobs) if isinstance(active, CompositionMemo) else frozenset()
 
 
 @contextlib.contextmanager

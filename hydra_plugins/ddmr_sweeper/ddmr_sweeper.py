@@ -49,4 +49,28 @@ class DdmrSweeper(Sweeper):
         self.basic.setup(hydra_context=context, task_function=task_function, config=config)
 
     def sweep(self, arguments: list[str]):
+        """Hydra's basic sweep. Its check that each batch's jobs compose (``validate_batch_is_legal``: a composition
+        per job, before the batch is launched; 200 one-seed jobs waited 0.6 s for it) composes, of the jobs ddmr's
+        plan composed and validated in this process (:func:`ddmr_cli.config.compose_once.validated_jobs`: ``ddmr run
+        -m`` validates every job before launching), only the first of each set of group choices: that composition
+        is the skeleton the launcher's workers derive the set's jobs from (they would compose it again each
+        otherwise), and it is what leaves Hydra's config store holding the launcher's config class that its module
+        now defines, which loky pickles by reference (checking no job at all, a joblib sweep failed: "Can't pickle
+        JobLibLauncherConf: it's not the same object"). A job ddmr did not validate is checked as Hydra checks it."""
+        from ddmr_cli.config.compose_once import validated_jobs
+
+        validated, check = validated_jobs(), self.basic.validate_batch_is_legal
+        loader, master, seen = self.basic.hydra_context.config_loader, self.basic.config, set()
+
+        def first_of_its_skeleton(job) -> bool:
+            skeleton = loader.skeleton_of(master, list(job)) if hasattr(loader, "skeleton_of") else None
+            if skeleton is None or skeleton in seen:
+                return skeleton is None
+            seen.add(skeleton)
+            return True
+
+        def validate_batch_is_legal(batch) -> None:
+            check([job for job in batch if tuple(job) not in validated or first_of_its_skeleton(job)])
+
+        self.basic.validate_batch_is_legal = validate_batch_is_legal
         return self.basic.sweep(arguments)
