@@ -123,15 +123,12 @@ def loop_law(fn):
     Python caller for the whole call, so it needs no count: without it, 114 -> 70 ns per run and step (smc_ndo,
     50 runs, one core), 221 -> 158 (smc_ndo_nno), the same numbers to the bit. ``_nrt`` is numba's own option
     (its tests use it); a law that allocates fails to compile in the loop, not silently. A numba without the
-    option (:func:`without_counting`) compiles the loop with counting: slower, the same numbers."""
-    return cached_law(fn, **without_counting())
+    option (:func:`without_counting`) compiles the loop with counting: slower, the same numbers.
 
-
-def no_allocation_law(fn):
-    """As :func:`cached_law`, compiled without numba's allocator and reference counting (``_nrt=False``, as
-    :func:`loop_law`): for a law Python calls that allocates nothing (its caller passes every array it needs). Loading
-    a cached function that allocates made a process that had loaded the step loop 3.4 MiB larger (numba links its
-    allocator into it); one that allocates nothing, about nothing. A law that allocates fails to compile here."""
+    Any other cached loop Python calls that allocates nothing (its caller passes every array it needs) is compiled
+    the same way: the seed bands' windowed pass (:func:`ddmr_cli.engine.band_windows.reduce_points`). Loading a
+    cached function that allocates made a process that had loaded the step loop 3.4 MiB larger (numba links its
+    allocator into it); one compiled without counting, about nothing."""
     return cached_law(fn, **without_counting())
 
 
@@ -168,5 +165,5 @@ def thread_count(n: int) -> int:
     return max(1, int(n) if n else cores)
 
 
-__all__ = ["AVAILABLE", "cached_law", "inlined_law", "jit_enabled", "law", "loop_law", "no_allocation_law", "plain",
-           "thread_count", "without_counting"]
+__all__ = ["AVAILABLE", "cached_law", "inlined_law", "jit_enabled", "law", "loop_law", "plain", "thread_count",
+           "without_counting"]

@@ -89,16 +89,6 @@ class Mode:
         return contextlib.nullcontext()
 
 
-def _record_validated(jobs: list[list[str]]) -> None:
-    """Record the override lists of jobs composed and validated here (as Hydra's sweeper will list them: the
-    session's overrides last) in the active composition context, so that Hydra's sweeper does not compose them
-    again only to check that they compose (:func:`ddmr_cli.config.compose_once.validated_jobs`)."""
-    from ddmr_cli.config.compose_once import compositions_once
-
-    with compositions_once() as memo:
-        memo.validated_jobs.update(tuple(job) for job in jobs)
-
-
 def _validate_jobs(jobs: list[dict], base: DictConfig, multirun: bool, compose: Callable[[list[str]], DictConfig]):
     """Compose and validate every job (the model is built: derived numbers fail here); then the memory budget
     of the largest job times the jobs at once. A bad value raises UsageError naming the key, the value and the
@@ -209,6 +199,7 @@ class Sweep(Mode):
     draws_bar = True
 
     def plan(self, base, overrides, parsed, composer):
+        from ddmr_cli.config.compose_once import record_validated_jobs
         from ddmr_cli.config.plan import plan_jobs
 
         jobs = plan_jobs(overrides, base)
@@ -227,7 +218,8 @@ class Sweep(Mode):
                              bool(base.run.get("progress", True)))
         work, self.warnings = _validate_jobs(jobs, base, True, lambda job: composer.compose([*job, *session]))
         session = session if small_local_sweep(base, parsed, len(jobs), work) else []
-        _record_validated([[*job["overrides"], *session] for job in jobs])
+        # as Hydra's sweeper will list them (the session's overrides last): it need not compose them again to check
+        record_validated_jobs([*job["overrides"], *session] for job in jobs)
         return Plan(jobs, session)
 
     def preflight(self, out_dir, jobs):

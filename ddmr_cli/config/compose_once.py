@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import pickle
-from typing import Callable, Iterator, Sequence
+from typing import Callable, Iterable, Iterator, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -281,14 +281,28 @@ def _record_process(cfg: DictConfig) -> None:
             cfg.hydra.job.env_set[name] = os.environ[name]
 
 
+def _active_memo() -> CompositionMemo | None:
+    """The memo of the innermost :func:`compositions_once` context this process is in, or None outside one."""
+    from ddmr_cli.compat import current_load
+
+    active = getattr(current_load(), "__self__", None)
+    return active if isinstance(active, CompositionMemo) else None
+
+
+def record_validated_jobs(jobs: Iterable[Sequence[str]]) -> None:
+    """Record the override lists of jobs ddmr's plan composed and validated (each as Hydra's sweeper will list it)
+    in the active :func:`compositions_once` context; outside one, nothing (no sweep of this process will ask)."""
+    memo = _active_memo()
+    if memo is not None:
+        memo.validated_jobs.update(tuple(job) for job in jobs)
+
+
 def validated_jobs() -> frozenset[tuple[str, ...]]:
     """The override lists of the jobs ddmr's plan has composed and validated within the active
     :func:`compositions_once` context (``ddmr run``'s), each as Hydra's sweeper lists it; empty outside one. Hydra's
     sweeper need not compose these again to check that they compose (``hydra_plugins/ddmr_sweeper``)."""
-    from ddmr_cli.compat import current_load
-
-    active = getattr(current_load(), "__self__", None)
-    return frozenset(active.validated_jobs) if isinstance(active, CompositionMemo) else frozenset()
+    memo = _active_memo()
+    return frozenset(memo.validated_jobs) if memo is not None else frozenset()
 
 
 @contextlib.contextmanager
@@ -296,10 +310,10 @@ def compositions_once() -> Iterator[CompositionMemo]:
     """Within the context, every whole composition of this process goes through one :class:`CompositionMemo`
     (:func:`ddmr_cli.compat.loading_through`). Yields the memo; within another such context, that one's memo (a
     composition asked of the cache once, not once per context)."""
-    from ddmr_cli.compat import current_load, loading_through
+    from ddmr_cli.compat import loading_through
 
-    active = getattr(current_load(), "__self__", None)
-    if isinstance(active, CompositionMemo):
+    active = _active_memo()
+    if active is not None:
         yield active
         return
     memo = CompositionMemo()

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from ddmr_cli.compiled import law, no_allocation_law
+from ddmr_cli.compiled import law, loop_law
 
 #: ranks kept either side of the wanted order statistics by the window carried to the next grid point (at least;
 #: ``n // MARGIN_FRACTION`` at n runs when that is more: ranks are denser at more runs)
@@ -193,18 +193,20 @@ def _column(column, n, ks, mean, window, inside1, inside2, whole):
     if hit:
         _sort(inside1, m1)
         _sort(inside2, m2)
-        window[0], window[1] = _window(inside1, below1, m1, k1, k1b, margin, mean)
-        window[2], window[3] = _window(inside2, below2, m2, k2, k2b, margin, mean)
-        return inside1[k1 - below1], inside1[k1b - below1], inside2[k2 - below2], inside2[k2b - below2], missed
-    for r in range(n):
-        whole[r] = column[r]
-    _sort(whole, n)
-    window[0], window[1] = _window(whole, 0, n, k1, k1b, margin, mean)
-    window[2], window[3] = _window(whole, 0, n, k2, k2b, margin, mean)
-    return whole[k1], whole[k1b], whole[k2], whole[k2b], missed + 1
+    else:  # the whole row, sorted, serves both percentiles
+        for r in range(n):
+            whole[r] = column[r]
+        _sort(whole, n)
+        inside1 = inside2 = whole
+        below1 = below2 = 0
+        m1 = m2 = n
+        missed += 1
+    window[0], window[1] = _window(inside1, below1, m1, k1, k1b, margin, mean)
+    window[2], window[3] = _window(inside2, below2, m2, k2, k2b, margin, mean)
+    return inside1[k1 - below1], inside1[k1b - below1], inside2[k2 - below2], inside2[k2b - below2], missed
 
 
-@no_allocation_law
+@loop_law
 def reduce_points(buffer, a, b, ks, sums, stats, windows, columns, scratch):
     """Reduce grid points ``a .. b - 1`` of ``buffer[run, point, channel]`` over the runs: ``sums[j, c]`` the sum of
     point ``a + j``'s values in run order, ``stats[q, j, c]`` its order statistic ``ks[q]`` (module docstring);

@@ -62,11 +62,12 @@ class DdmrSweeper(Sweeper):
         validated, check = validated_jobs(), self.basic.validate_batch_is_legal
         loader, master, seen = self.basic.hydra_context.config_loader, self.basic.config, set()
 
-        def first_of_its_skeleton(job) -> bool:
-            skeleton = loader.skeleton_of(master, list(job)) if hasattr(loader, "skeleton_of") else None
-            if skeleton is None or skeleton in seen:
-                return skeleton is None
-            seen.add(skeleton)
+        def first_of_its_skeleton(job) -> bool:  # a job composed in full (no skeleton) counts as a first
+            skeleton = loader.skeleton_of(master, list(job))
+            if skeleton in seen:
+                return False
+            if skeleton is not None:
+                seen.add(skeleton)
             return True
 
         def validate_batch_is_legal(batch) -> None:
