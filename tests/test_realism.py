@@ -225,9 +225,9 @@ def test_operation_counts_match_the_laws_read_by_hand(counts):
     assert pid["add"] == pytest.approx(12 - 2 / 200) and pid["mul"] == pytest.approx(10 - 2 / 200)
     assert pid["div"] == pytest.approx(2 - 2 / 200) and pid["transcendental"] == 0
     nno = counts["smc_ndo_nno"]
-    # one exp per neuron in reach (both wheels share it): at cruise (33 rad/s) the centres -40, -31.1 and -22.2 of
-    # the 10 are beyond exp's range, phi = 0 without a call (rbf.basis)
-    assert nno["transcendental"] == pytest.approx(7)
+    # one exp per neuron (both wheels share it), the far ones too (rbf.basis: elementary.exp_neg is 0 below its
+    # range at the cost of any other)
+    assert nno["transcendental"] == pytest.approx(10)
     assert nno["add"] > 4 * 10 and nno["mul"] > 6 * 10  # basis, estimate and update: a few per neuron and wheel
 
 
@@ -235,7 +235,7 @@ def test_counting_leaves_every_module_its_math_and_a_module_imported_later_is_co
     """The counter swaps ``math`` in the laws' modules for a counting one and puts the real one back: a controller
     whose modules are imported after an earlier count (the control package imports each on first use) is counted
     in full, and no module keeps a counting ``math`` (it did: the counter swapped its own module's ``math`` too,
-    and then put that back in the others)."""
+    and then put that back in the others) or a counting function of ``elementary``."""
     import os
     import subprocess
     import sys
@@ -243,14 +243,16 @@ def test_counting_leaves_every_module_its_math_and_a_module_imported_later_is_co
     code = ("import json, math, sys; from ddmr_cli.bench.cost import packaged_counts; "
             "pid = packaged_counts(['pid']); later = sys.modules.get('ddmr_cli.control.rbf') is None; "
             "nno = packaged_counts(['smc_ndo_nno'])['smc_ndo_nno']; "
+            "from ddmr_cli.model import elementary as e; "
             "kept = sorted(n for n, m in sys.modules.items() if n.startswith('ddmr_cli') "
-            "and hasattr(m, 'math') and m.math is not math); "
+            "and (hasattr(m, 'math') and m.math is not math or getattr(m, 'exp_neg', e.exp_neg) is not e.exp_neg "
+            "or getattr(m, 'sincos', e.sincos) is not e.sincos)); "
             "print(json.dumps([later, nno['transcendental'], kept]))")
     out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
                          capture_output=True, text=True, check=True, timeout=300).stdout
     later, transcendental, kept = __import__("json").loads(out.strip().splitlines()[-1])
     assert later  # the NN's module was imported after the first count
-    assert transcendental == pytest.approx(7)
+    assert transcendental == pytest.approx(10)  # one elementary.exp_neg per neuron
     assert kept == []
 
 

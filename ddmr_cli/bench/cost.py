@@ -40,6 +40,9 @@ M4F_CLOCK_HZ = 168e6
 BUDGET_PERIOD = 1e-3
 #: math functions the laws call, counted as transcendental (sqrt apart)
 TRANSCENDENTAL = ("exp", "tanh", "sin", "cos", "atan2", "log", "hypot")
+#: the functions of :mod:`ddmr_cli.model.elementary` the laws call, and the transcendental functions each one is
+#: (its arithmetic is libm's work, which a port calls: counted as libm's, not operation by operation)
+ELEMENTARY = {"exp_neg": 1, "sincos": 2}
 
 
 #: the template of the loop that runs a controller's laws alone (one cached copy per controller)
@@ -134,6 +137,7 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
     Runs the laws as plain Python, so it needs numba off (``NUMBA_DISABLE_JIT=1`` or no numba):
     :func:`operation_counts` runs it in such a subprocess."""
     from ddmr_cli.compiled import jit_enabled
+    from ddmr_cli.model import elementary
 
     if jit_enabled():
         raise RuntimeError("count_operations runs the pure-Python laws: set NUMBA_DISABLE_JIT=1")
@@ -148,12 +152,26 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
             return counted(fn(*(float(a) for a in args)))
         return call
 
+    def counting_elementary(name):
+        fn, calls = getattr(elementary, name), ELEMENTARY[name]
+
+        def call(*args):
+            counts["transcendental"] += calls
+            out = fn(*(float(a) for a in args))
+            return tuple(counted(v) for v in out) if isinstance(out, tuple) else counted(out)
+        return call
+
     fake_math = SimpleNamespace(**{name: getattr(math, name) for name in dir(math) if not name.startswith("_")})
     for name in (*TRANSCENDENTAL, "sqrt"):
         setattr(fake_math, name, counting(name))
     # every ddmr module that calls math, this one apart: it restores the others from its own ``math`` below
     modules = [m for m in list(sys.modules.values()) if getattr(m, "__name__", "").startswith("ddmr_cli.")
                and m is not sys.modules[__name__] and getattr(m, "math", None) is math]
+    # and every one that imported a function of ``elementary`` by name (elementary's own code is not counted)
+    elementary_names = [(m, name) for m in list(sys.modules.values())
+                        if getattr(m, "__name__", "").startswith("ddmr_cli.") and m is not elementary
+                        for name in ELEMENTARY if getattr(m, name, None) is getattr(elementary, name)]
+    counting_versions = {name: counting_elementary(name) for name in ELEMENTARY}
     laws = controller.laws
     params = _wrap(controller.law_parameters(nominal, dt), counted)
     record = controller.initial_state(1)[0]
@@ -164,6 +182,8 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
     try:
         for m in modules:
             m.math = fake_math
+        for m, name in elementary_names:
+            setattr(m, name, counting_versions[name])
         laws.start(params, st, w[0, 0], w[0, 1])
         for key in counts:
             counts[key] = 0
@@ -173,6 +193,8 @@ def count_operations(controller, nominal, dt: float, n: int = 200) -> dict[str, 
     finally:
         for m in modules:
             m.math = math
+        for m, name in elementary_names:
+            setattr(m, name, getattr(elementary, name))
     return {key: value / n for key, value in counts.items()}
 
 

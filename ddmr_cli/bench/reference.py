@@ -29,14 +29,15 @@ Two layouts of the same loop (``layout=``):
     array of rows ``(field, run)`` with a constant row length, so that every stage of a step is a loop over the
     block's runs that LLVM vectorises (AVX-512: 8 runs an instruction; a partial block runs the same code on
     fewer runs). numba has no vector ``sin``, ``cos`` or ``exp`` without Intel's SVML (not installed here), and
-    LLVM leaves a loop that calls libm's scalar, so this layout brings its own branch-free :func:`sincos` and
-    :func:`exp_neg` (fdlibm's kernels, at most 1 ulp from glibc's; the tests check it): the trajectories agree
-    with the engine's to rounding (about 1e-13 relative in the metrics), not to the bit, and a seed gives the
-    same bits alone or in any batch. A neuron whose exponent is below -746 for every run of the block (its phi
+    LLVM leaves a loop that calls libm's scalar, so this layout uses the branch-free :func:`sincos` and
+    :func:`exp_neg` of :mod:`ddmr_cli.model.elementary` (fdlibm's kernels, at most 1 ulp from glibc's; the
+    engine's RBF network uses the same exp) with fused multiply-adds: the trajectories agree with the engine's to
+    rounding (about 1e-13 relative in the metrics), not to the bit, and a seed gives the same bits alone or in
+    any batch. A neuron whose exponent is below -746 for every run of the block (its phi
     is exactly 0, as in the engine) is skipped.
 ``"scalar"``
-    One run at a time, its state in registers, libm's ``cos``, ``sin`` and ``exp`` where the engine
-    calls them, the same operations in the same order (on the reference machine: the same trajectory bit for
+    One run at a time, its state in registers, libm's ``cos`` and ``sin`` and the network's
+    :func:`~ddmr_cli.model.elementary.exp_neg` where the engine calls them, the same operations in the same order (on the reference machine: the same trajectory bit for
     bit; the sums differ in summation order only). Each step waits for the one before (a long chain of dependent
     operations), which the lanes layout overlaps across runs.
 
@@ -63,6 +64,8 @@ import numpy as np
 from ddmr_cli.compiled import AVAILABLE, plain
 from ddmr_cli.control import rbf
 from ddmr_cli.control.smc import SMC
+from ddmr_cli.model import elementary
+from ddmr_cli.model.elementary import EXP_ZERO
 from ddmr_cli.model.noise import NoiseStreams, ou_coefficients
 # _initial_wheel_speeds: the engine's own rolling start (read, not copied)
 from ddmr_cli.engine.simulation import Simulation, _initial_wheel_speeds, chunk_steps
@@ -71,9 +74,7 @@ from ddmr_cli.model.robot import NominalModel
 from ddmr_cli.model.trajectory import reference_table
 
 if AVAILABLE:
-    from llvmlite import ir
-    from numba import njit, types
-    from numba.extending import intrinsic, overload
+    from numba import njit
 
     #: the lanes layout's only fast-math flag: fused multiply-adds (module docstring)
     _LANES_FASTMATH = {"contract"}
@@ -101,8 +102,6 @@ LAYOUTS = ("lanes", "scalar")
 BLOCK = 32
 #: the metrics :func:`reference_metrics` returns per seed (as :data:`ddmr_cli.engine.catalog.METRICS` defines them)
 METRICS = ("deviation_mae", "deviation_rmse", "deviation_max", "e_x_mae", "e_y_mae", "e_theta_mae", "iae", "ise")
-#: below this exponent exp is exactly 0 (as :data:`ddmr_cli.control.rbf.EXP_ZERO`)
-EXP_ZERO = rbf.EXP_ZERO
 
 # rows of the run state S (N_STATE, n_runs) and of the lanes layout's local array L
 X, Y, TH, DIST, W_R, W_L, WDP_R, WDP_L, N_R, N_L, Z_R, Z_L = range(12)
@@ -218,89 +217,13 @@ def constants(sim: Simulation) -> tuple[Constants, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# Branch-free sin, cos and exp that LLVM vectorises (fdlibm's algorithms: k_sin.c, k_cos.c, e_rem_pio2.c's
-# medium case with both iterations, e_exp.c); at most 1 ulp from glibc's.
+# The lanes layout's sin, cos and exp: the engine's (:mod:`ddmr_cli.model.elementary`), compiled inline with the
+# lanes layout's fast-math flag; the engine's wrap, written again (branch-free for the lanes layout).
 
-_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
-_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
-_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
-_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
-_INV_PIO2 = 6.36619772367581382433e-01
-_PIO2_1 = 1.57079632673412561417e+00
-_PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
-_P1, _P2, _P3 = 1.66666666666666019037e-01, -2.77777777770155933842e-03, 6.61375632143793436117e-05
-_P4, _P5 = -1.65339022054652515390e-06, 4.13813679705723846039e-08
-_LN2_HI, _LN2_LO, _INV_LN2 = 6.93147180369123816490e-01, 1.90821492927058770002e-10, 1.44269504088896338700e+00
-
-
-def _pow2(k):
-    """``2.0 ** k`` for an integer ``-1022 <= k <= 1023`` (compiled: the exponent bits, no call)."""
-    return math.ldexp(1.0, int(k))
-
-
-if AVAILABLE:
-    @intrinsic
-    def _bits_to_float(typingctx, bits):
-        if bits != types.int64:
-            return None
-
-        def codegen(context, builder, signature, args):
-            return builder.bitcast(args[0], ir.DoubleType())
-
-        return types.float64(types.int64), codegen
-
-    @overload(_pow2, inline="always")
-    def _pow2_compiled(k):
-        def impl(k):
-            return _bits_to_float((k + 1023) << 52)
-
-        return impl
-
-
-@_inline
-def sincos(x):
-    """``(sin x, cos x)`` for ``|x| < 2^19 pi / 2``, branch-free (fdlibm's kernels on ``x`` reduced by the nearest
-    multiple of pi/2 to 118 bits; at most 1 ulp from glibc)."""
-    fn = math.floor(x * _INV_PIO2 + 0.5)
-    t = x - fn * _PIO2_1
-    w2 = fn * _PIO2_2
-    r = t - w2
-    w = fn * _PIO2_2T - ((t - r) - w2)
-    a = r - w
-    b = (r - a) - w
-    z = a * a
-    v = z * a
-    rs = _S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))
-    ks = a - ((z * (0.5 * b - v * rs) - b) - v * _S1)
-    zz = z * z
-    rc = z * (_C1 + z * (_C2 + z * _C3)) + zz * zz * (_C4 + z * (_C5 + z * _C6))
-    hz = 0.5 * z
-    one_hz = 1.0 - hz
-    kc = one_hz + (((1.0 - one_hz) - hz) + (z * rc - a * b))
-    q = np.int64(fn)
-    odd = (q & 1) != 0
-    s = (kc if odd else ks) * (1.0 - (q & 2))
-    c = (ks if odd else kc) * (1.0 - ((q + 1) & 2))
-    return s, c
-
-
-@_inline
-def exp_neg(x):
-    """``exp(x)`` for ``x <= 0`` (NaN stays NaN), branch-free: fdlibm's e_exp.c; exactly 0 below
-    :data:`EXP_ZERO` (those lanes compute on 0, not on an underflow, which is slow)."""
-    small = x < EXP_ZERO
-    xs = 0.0 if small else x
-    kf = math.floor(xs * _INV_LN2 + 0.5)
-    hi = xs - kf * _LN2_HI
-    lo = kf * _LN2_LO
-    r = hi - lo
-    t = r * r
-    c = r - t * (_P1 + t * (_P2 + t * (_P3 + t * (_P4 + t * _P5))))
-    y = 1.0 - ((lo - (r * c) / (2.0 - c)) - hi)
-    k = np.int64(kf)
-    half = k >> 1
-    out = y * _pow2(half) * _pow2(k - half)  # two factors: 2^k may be subnormal
-    return 0.0 if small else out
+#: ``(sin x, cos x)``, :func:`ddmr_cli.model.elementary.sincos` inlined with fused multiply-adds
+sincos = _inline(plain(elementary.sincos))
+#: ``exp(x)`` for ``x <= 0``, :func:`ddmr_cli.model.elementary.exp_neg` inlined with fused multiply-adds
+exp_neg = _inline(plain(elementary.exp_neg))
 
 
 @_inline
@@ -526,7 +449,7 @@ def scalar_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
             nn_R = nn_L = 0.0
             for q in range(nn):
                 e = ((w_R - centers[q]) ** 2 + (w_L - centers[q]) ** 2) * c.exponent_scale
-                phi[q] = math.exp(e) if e >= EXP_ZERO else 0.0
+                phi[q] = elementary.exp_neg(e)
                 nn_R += W[q, 0, r] * phi[q]
                 nn_L += W[q, 1, r] * phi[q]
             a_R = wdd_R + c.lam_R * s_R + c.gain_R * min(max(s_R * c.inv_boundary, -1.0), 1.0) - (dn_R + nn_R)

@@ -16,10 +16,9 @@ import numpy as np
 from ddmr_cli.compiled import law
 from ddmr_cli.checks import compact, finite, integer, per_wheel, positive
 from ddmr_cli.errors import ConfigError
+from ddmr_cli.model.elementary import exp_neg
 
 
-#: below this exponent exp underflows to exactly 0.0 (exp(-745.14) is half the smallest subnormal, 2^-1075)
-EXP_ZERO = -746.0
 #: A state record holds the network in blocks of this many neurons (:func:`capacity`): numba types a record by its
 #: fields' shapes and compiles a step loop per record layout (8-9 s each), so the sizes 1 to 16 (Table 3's 10 and
 #: the sensitivity study's 5, 10 and 15) share one layout and one loop, 17 to 32 the next. The laws run over the
@@ -67,20 +66,12 @@ def exponent(p, j, w_R, w_L):
 def basis(p, phi, w_R, w_L):
     """(27): ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))`` for ``x = (w_R, w_L)``, ``c_j = (c_j, c_j)``, into ``phi``.
 
-    exp is exactly 0 below :data:`EXP_ZERO`, and libm reaches that 0 by a slow path (underflow, errno): the
-    neurons far from ``x`` (at the paper's 33 rad/s, 3 of the 10) are set to 0 without calling it. The exponent is
-    concave in ``c_j`` and the centres ascend, so the neurons that need exp are one run ``lo .. hi - 1``; loop
-    bounds, unlike a branch per neuron, keep the compiler from calling exp for the others anyway."""
-    n = p.n_neurons
-    lo, hi = 0, n
-    while lo < n and exponent(p, lo, w_R, w_L) < EXP_ZERO:
-        phi[lo] = 0.0
-        lo += 1
-    while hi > lo and exponent(p, hi - 1, w_R, w_L) < EXP_ZERO:
-        phi[hi - 1] = 0.0
-        hi -= 1
-    for j in range(lo, hi):
-        phi[j] = math.exp(exponent(p, j, w_R, w_L))
+    The exp is :func:`~ddmr_cli.model.elementary.exp_neg` (arithmetic, not libm's call): compiled, the loop over
+    the neurons is vectorised, and a neuron far from ``x`` (exactly 0 below
+    :data:`~ddmr_cli.model.elementary.EXP_ZERO`; at the paper's 33 rad/s, 3 of the 10) costs what the others cost,
+    where libm's exp takes a slow underflow path."""
+    for j in range(p.n_neurons):
+        phi[j] = exp_neg(exponent(p, j, w_R, w_L))
 
 
 @law
