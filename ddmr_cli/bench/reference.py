@@ -37,8 +37,8 @@ Two layouts of the same loop (``layout=``):
     is exactly 0, as in the engine) is skipped.
 ``"scalar"``
     One run at a time, its state in registers, libm's ``cos`` and ``sin`` and the network's
-    :func:`~ddmr_cli.model.elementary.exp_neg` where the engine calls them, the same operations in the same order (on the reference machine: the same trajectory bit for
-    bit; the sums differ in summation order only). Each step waits for the one before (a long chain of dependent
+    :func:`~ddmr_cli.model.elementary.exp_neg` where the engine calls them, the same operations in the same order
+    (on the reference machine: the same trajectory bit for bit; the sums differ in summation order only). Each step waits for the one before (a long chain of dependent
     operations), which the lanes layout overlaps across runs.
 
 Measured on the 2-core AVX-512 reference machine (kernel alone, noise drawn beforehand, ns per run and step):
