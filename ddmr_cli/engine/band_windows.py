@@ -8,11 +8,10 @@ buffer: about 15 ns a value at 1,000 runs (a 1,000-value sort there is 12.6 ns a
 Neighbouring grid points hold nearly the same distribution, shifted: every run moves on by a step or a few, and the
 whole population drifts together much more than it spreads. So the order statistics, taken relative to the mean,
 move little from one grid point to the next. :func:`reduce_points` keeps, per channel and percentile, a window of
-values ``[lo, hi]`` relative to the mean, and at the next point counts the values below each window and up to its
-top (a branch-free pass LLVM vectorises). When the wanted ranks fall inside (``below <= k`` and ``up to top >
-k + 1``), a second pass collects the values inside, and sorting those few (by insertion: a dozen or two) gives
-exactly the order statistics, as a sort of the whole row would: every value below the window ranks below every
-value in it. Otherwise the window is
+values ``[lo, hi]`` relative to the mean, and at the next point, in one branch-free pass, counts the values below
+each window and collects those inside. When the wanted ranks fall inside (``below <= k`` and ``below + inside >
+k + 1``), sorting those few (by insertion: a dozen or two) gives exactly the order statistics, as a sort of the
+whole row would: every value below the window ranks below every value in it. Otherwise the window is
 widened and counted again; where no window was carried or it still misses (the first grid point of a call, which
 a second thread may start in the middle of a chunk, or a jump), windows are taken from a sample of 64 runs; and if
 those miss too the row is sorted whole. The window for the next point is taken :data:`MARGIN` ranks out from the
@@ -22,7 +21,8 @@ The windows only decide how fast the answer comes, never what it is: the order s
 are the same to the bit as numpy's reduction (tests/test_band_windows.py), in any chunking and with any thread
 count. Measured on buffers of the engine's own runs (1,000 runs, smc_ndo and smc_ndo_nno): see
 :data:`~ddmr_cli.engine.bands.WINDOW_MIN_RUNS`. The mean is the sum over the runs in their order divided by the
-count, as numpy's ``mean(axis=0)`` of the buffer computes it.
+count, as numpy's ``mean(axis=0)`` of the buffer computes it; the sums are taken as the point's values are gathered,
+the eight channels' in step (eight independent chains of additions, not one after the other).
 """
 
 from __future__ import annotations
@@ -100,48 +100,33 @@ def _window(ordered, base, m, k, k_next, margin, mean):
 
 
 @law
-def _counts(column, n, lo1, hi1, lo2, hi2):
-    """How many values of ``column[:n]`` lie below ``lo1``, at most ``hi1``, below ``lo2`` and at most ``hi2``
-    (branch-free sums: LLVM vectorises the pass)."""
-    below1 = upto1 = below2 = upto2 = 0
+def _count_collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2):
+    """How many values of ``column[:n]`` lie below ``lo1`` and below ``lo2``, and the values inside ``[lo1, hi1]``
+    into ``inside1`` and those inside ``[lo2, hi2]`` into ``inside2``, in run order, with their counts. Branch-free
+    (every value is stored, and kept, the count moving on, when it is inside), so no misprediction, one pass."""
+    below1 = below2 = m1 = m2 = 0
     for r in range(n):
         v = column[r]
         below1 += v < lo1
-        upto1 += v <= hi1
         below2 += v < lo2
-        upto2 += v <= hi2
-    return below1, upto1, below2, upto2
-
-
-@law
-def _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2):
-    """The values of ``column[:n]`` inside ``[lo1, hi1]`` into ``inside1`` and those inside ``[lo2, hi2]`` into
-    ``inside2`` (``hi1 < lo2``), in run order."""
-    m1 = m2 = 0
-    for r in range(n):
-        v = column[r]
-        if (lo1 <= v) & (v <= hi2) & ((v <= hi1) | (lo2 <= v)):  # rare: one branch, well predicted
-            if v <= hi1:
-                inside1[m1] = v
-                m1 += 1
-            else:
-                inside2[m2] = v
-                m2 += 1
-    return m1, m2
+        inside1[m1] = v
+        m1 += (lo1 <= v) & (v <= hi1)
+        inside2[m2] = v
+        m2 += (lo2 <= v) & (v <= hi2)
+    return below1, m1, below2, m2
 
 
 @law
 def _search(column, n, ks, lo1, hi1, lo2, hi2, tries, inside1, inside2):
-    """Count ``column[:n]`` against the windows, widening them after a miss, up to ``tries`` times; on a hit, collect
-    the values inside. Returns (hit, values below the first window, inside it, below the second, inside it, windows
-    that missed). Windows that are NaN or meet (``hi1 >= lo2``) are not tried."""
+    """Count and collect ``column[:n]`` against the windows, widening them after a miss, up to ``tries`` times.
+    Returns (hit, values below the first window, inside it, below the second, inside it, windows that missed).
+    Windows that are NaN or meet (``hi1 >= lo2``) are not tried."""
     k1, k1b, k2, k2b = ks[0], ks[1], ks[2], ks[3]
     for attempt in range(tries):
         if not lo1 <= hi1 < lo2 <= hi2:
             return False, 0, 0, 0, 0, attempt
-        below1, upto1, below2, upto2 = _counts(column, n, lo1, hi1, lo2, hi2)
-        if below1 <= k1 and upto1 > k1b and below2 <= k2 and upto2 > k2b:
-            m1, m2 = _collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2)
+        below1, m1, below2, m2 = _count_collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2)
+        if below1 <= k1 and below1 + m1 > k1b and below2 <= k2 and below2 + m2 > k2b:
             return True, below1, m1, below2, m2, attempt
         # widen both windows, keeping them apart
         span1, span2, gap = hi1 - lo1, hi2 - lo2, lo2 - hi1
@@ -211,27 +196,26 @@ def reduce_points(buffer, a, b, ks, sums, stats, windows, columns, scratch):
     """Reduce grid points ``a .. b - 1`` of ``buffer[run, point, channel]`` over the runs: ``sums[j, c]`` the sum of
     point ``a + j``'s values in run order, ``stats[q, j, c]`` its order statistic ``ks[q]`` (module docstring);
     ``windows[c]`` the carried windows (updated); ``columns`` ``(channels, runs)`` and ``scratch`` ``(3, runs)``
-    the pass's working memory. Returns the number of windows that missed, or -1, with nothing written, when a value
-    is not finite (the caller reduces that block by numpy's rules for diverged runs)."""
+    the pass's working memory. Returns the number of windows that missed, or -1 as soon as a point holds a value that
+    is not finite (the caller then drops what the pass wrote, ``windows`` too, and reduces the block by numpy's rules
+    for diverged runs)."""
     n, _, n_channels = buffer.shape
-    for r in range(n):
-        for j in range(a, b):
-            for c in range(n_channels):
-                if not math.isfinite(buffer[r, j, c]):
-                    return -1
     inside1, inside2, whole = scratch[0], scratch[1], scratch[2]
     missed = 0
     for j in range(b - a):
-        for r in range(n):  # the point's values, one row per channel (each buffer row holds all its channels)
-            for c in range(n_channels):
-                columns[c, r] = buffer[r, a + j, c]
+        finite = True
         for c in range(n_channels):
-            column = columns[c]
-            total = 0.0
-            for r in range(n):
-                total += column[r]
-            sums[j, c] = total
-            s0, s1, s2, s3, attempts = _column(column, n, ks, total / n, windows[c], inside1, inside2, whole)
+            sums[j, c] = 0.0
+        for r in range(n):  # the point's values, one row per channel (each buffer row holds all its channels),
+            for c in range(n_channels):  # their sums (the channels' in step, each in run order), and whether finite
+                v = buffer[r, a + j, c]
+                columns[c, r] = v
+                sums[j, c] += v
+                finite &= math.isfinite(v)
+        if not finite:
+            return -1
+        for c in range(n_channels):
+            s0, s1, s2, s3, attempts = _column(columns[c], n, ks, sums[j, c] / n, windows[c], inside1, inside2, whole)
             stats[0, j, c], stats[1, j, c], stats[2, j, c], stats[3, j, c] = s0, s1, s2, s3
             missed += attempts
     return missed

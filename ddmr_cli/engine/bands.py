@@ -37,8 +37,8 @@ PARTITION_MIN_RUNS = 2000
 #: From this many runs on, a chunk of finite values is reduced by the compiled windowed pass
 #: (:mod:`ddmr_cli.engine.band_windows`) instead of numpy's transpose and sort: the same numbers, bit for bit.
 #: Measured on band buffers of the engine's own runs (smc_ndo on the paper's terrain, chunked as the engine chunks),
-#: ns a value, numpy against windowed: 50 runs 3.5 / 17.5, 200 runs 4.1 / 7.7, 400 runs 8.1 / 6.1, 1,000 runs
-#: 15.1 / 5.7 (smc_ndo_nno 14.6 / 5.3), 2,000 runs 15.8 / 5.3, 10,000 runs 20.0 / 7.3.
+#: ns a value, numpy against windowed: 50 runs 5.5 / 13.9, 200 runs 4.0 / 6.0, 400 runs 8.5 / 4.9, 1,000 runs
+#: 15.1 / 4.3 (smc_ndo_nno 15.3 / 4.1), 2,000 runs 16.0 / 4.3, 10,000 runs 18.9 / 5.7.
 WINDOW_MIN_RUNS = 400
 
 
