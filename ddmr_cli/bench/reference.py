@@ -447,9 +447,9 @@ def scalar_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
             dn_R = z_R + c.ndo_R * w_R
             dn_L = z_L + c.ndo_L * w_L
             nn_R = nn_L = 0.0
+            for q in range(nn):  # the basis first, then the sums (the engine's order: its exp loop vectorises)
+                phi[q] = elementary.exp_neg(((w_R - centers[q]) ** 2 + (w_L - centers[q]) ** 2) * c.exponent_scale)
             for q in range(nn):
-                e = ((w_R - centers[q]) ** 2 + (w_L - centers[q]) ** 2) * c.exponent_scale
-                phi[q] = elementary.exp_neg(e)
                 nn_R += W[q, 0, r] * phi[q]
                 nn_L += W[q, 1, r] * phi[q]
             a_R = wdd_R + c.lam_R * s_R + c.gain_R * min(max(s_R * c.inv_boundary, -1.0), 1.0) - (dn_R + nn_R)
