@@ -33,13 +33,14 @@ Two layouts of the same loop (``layout=``):
     :func:`exp_neg` of :mod:`ddmr_cli.model.elementary` (fdlibm's kernels, at most 1 ulp from glibc's; the
     engine's RBF network uses the same exp) with fused multiply-adds: the trajectories agree with the engine's to
     rounding (about 1e-13 relative in the metrics), not to the bit, and a seed gives the same bits alone or in
-    any batch. A neuron whose exponent is below -746 for every run of the block (its phi
-    is exactly 0, as in the engine) is skipped.
+    any batch. A neuron whose exponent is below -746 for every run of the block (its phi is exactly 0, as in the
+    engine) is skipped.
 ``"scalar"``
     One run at a time, its state in registers, libm's ``cos`` and ``sin`` and the network's
     :func:`~ddmr_cli.model.elementary.exp_neg` where the engine calls them, the same operations in the same order
-    (on the reference machine: the same trajectory bit for bit; the sums differ in summation order only). Each step waits for the one before (a long chain of dependent
-    operations), which the lanes layout overlaps across runs.
+    (on the reference machine: the same trajectory bit for bit; the sums differ in summation order only). Each
+    step waits for the one before (a long chain of dependent operations), which the lanes layout overlaps across
+    runs.
 
 Measured on the 2-core AVX-512 reference machine (kernel alone, noise drawn beforehand, ns per run and step):
 lanes 15 (SMC-NDO) and 29 (SMC-NDO-NNO), scalar 50 and 116; with the noise (31 ns a step at 50 runs, 40 at
