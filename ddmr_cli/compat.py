@@ -15,7 +15,11 @@ Hydra
 OmegaConf
     ``OmegaConf.to_yaml`` emits through PyYAML's pure-Python emitter (``omegaconf._utils.get_omega_conf_dumper``):
     Hydra writes every job's three ``.hydra`` files with it. :func:`libyaml_for_omegaconf` points it at PyYAML's C
-    emitter with OmegaConf's own representer; tested with omegaconf 2.3.
+    emitter with OmegaConf's own representer. Hydra deep-copies a job's whole config four times a job, and most of
+    each copy is the generic ``copy.deepcopy`` of every node's metadata (``omegaconf.base.Metadata``, a dataclass)
+    and the construction of every value node that its copy then overwrites: :func:`fast_config_copies` gives both a
+    ``__deepcopy__`` that makes the same copy directly. :func:`omegaconf_speedups` installs both hooks. Tested with
+    omegaconf 2.3.
 
 Optuna (the ``tune`` extra: gain tuning and the calibration search, ``hydra/sweeper=ddmr_optuna``)
     Supported: :data:`OPTUNA_MIN` and later (the plugin uses the public ask-and-tell and ``suggest_*`` API; tested
@@ -218,6 +222,114 @@ def libyaml_for_omegaconf() -> Callable[[], None]:
 
     def restore() -> None:
         module.get_omega_conf_dumper = original
+
+    return restore
+
+
+#: the fields of ``omegaconf.base.Metadata`` :func:`fast_config_copies` was written for (omegaconf 2.3)
+_METADATA_FIELDS = ("ref_type", "object_type", "optional", "key", "flags", "flags_root", "resolver_cache")
+#: the types ``copy.deepcopy`` returns as they are (``copy._deepcopy_atomic``), of those a node's metadata holds
+_ATOMIC = frozenset({type(None), bool, int, float, str, type})
+
+
+def _metadata_deepcopy(self, memo: dict) -> Any:
+    """``copy.deepcopy`` of a node's metadata, as its generic path copies a dataclass (a new instance, every field
+    deep-copied with ``memo``), without that path's ``__reduce_ex__`` and reconstruction: a field that deepcopy
+    returns as it is (a type, a str, a bool, None) is kept, the resolver cache when empty (a ``defaultdict``) and a
+    flags dict of plain values are copied directly, and anything else goes through ``copy.deepcopy``."""
+    import copy
+    from collections import defaultdict
+
+    cls = type(self)
+    new = cls.__new__(cls)
+    memo[id(self)] = new
+    fields = new.__dict__
+    for name, value in self.__dict__.items():
+        kind = type(value)
+        if kind in _ATOMIC:
+            fields[name] = value
+        elif kind is defaultdict and not value:
+            fields[name] = memo[id(value)] = defaultdict(value.default_factory)
+        elif kind is dict and all(type(k) in _ATOMIC and type(v) in _ATOMIC for k, v in value.items()):
+            fields[name] = memo[id(value)] = dict(value)
+        else:
+            fields[name] = copy.deepcopy(value, memo)
+    return new
+
+
+#: the value nodes :func:`fast_config_copies` copies without constructing a node first (those whose fresh instance
+#: holds nothing but what their copy overwrites: not ``EnumNode``, which also holds its enum type)
+_VALUE_NODES = ("AnyNode", "StringNode", "IntegerNode", "FloatNode", "BooleanNode", "PathNode", "BytesNode")
+#: what a fresh value node holds (``Node.__init__`` and ``ValueNode._set_value``), in that order
+_VALUE_NODE_FIELDS = ("_metadata", "_parent", "_flags_cache", "_val")
+
+
+def _value_node_deepcopy(self, memo: dict) -> Any:
+    """``copy.deepcopy`` of a value node as OmegaConf's own ``__deepcopy__`` makes it (a fresh node of the same class,
+    then ``ValueNode._deepcopy_impl``: the metadata deep-copied, the value and the parent kept), without constructing
+    the fresh node through ``__init__`` (which validates a None value under a read-write flag, all of it overwritten):
+    the same four fields, set directly."""
+    import copy
+
+    cls = type(self)
+    res = cls.__new__(cls)
+    fields = res.__dict__
+    fields["_metadata"] = copy.deepcopy(self.__dict__["_metadata"], memo)
+    fields["_parent"] = self.__dict__["_parent"]
+    fields["_flags_cache"] = None
+    fields["_val"] = self.__dict__["_val"]
+    return res
+
+
+def fast_config_copies() -> Callable[[], None]:
+    """Make OmegaConf's deep copies of a config twice as fast, the same copies: node metadata
+    (``omegaconf.base.Metadata``, and so ``ContainerMetadata``) gets the ``__deepcopy__``
+    :func:`_metadata_deepcopy`, and the plain value nodes (:data:`_VALUE_NODES`) :func:`_value_node_deepcopy`.
+    Hydra's ``run_job`` copies a job's config four times a job (the job's, the task's, the hydra node's,
+    ``HydraConfig.set_config``'s masked copy); the bench's job config with its hydra node: 6.8 -> 3.5 ms a copy by
+    the metadata alone. Returns a function that takes them away again. Each part is installed only where OmegaConf
+    is as it was written for: ``Metadata`` the dataclass of :data:`_METADATA_FIELDS` without a ``__deepcopy__`` of
+    its own, a value node whose fresh instance holds :data:`_VALUE_NODE_FIELDS` and nothing else, with
+    ``_flags_cache`` None. Idempotent."""
+    import dataclasses
+
+    from omegaconf import base, nodes
+
+    undo: list[tuple[type, Any]] = []
+    cls = base.Metadata
+    if (dataclasses.is_dataclass(cls) and "__deepcopy__" not in cls.__dict__ and not hasattr(cls, "__slots__")
+            and tuple(f.name for f in dataclasses.fields(cls)) == _METADATA_FIELDS):
+        cls.__deepcopy__ = _metadata_deepcopy
+        undo.append((cls, None))
+    for name in _VALUE_NODES:
+        node = getattr(nodes, name, None)
+        own = getattr(node, "__dict__", {}).get("__deepcopy__")
+        if own is None or own is _value_node_deepcopy or not hasattr(nodes.ValueNode, "_deepcopy_impl"):
+            continue
+        fresh = node()
+        if tuple(fresh.__dict__) != _VALUE_NODE_FIELDS or fresh.__dict__["_flags_cache"] is not None:
+            continue
+        node.__deepcopy__ = _value_node_deepcopy
+        undo.append((node, own))
+
+    def restore() -> None:
+        for owner, original in reversed(undo):
+            if owner.__dict__.get("__deepcopy__") in (_metadata_deepcopy, _value_node_deepcopy):
+                if original is None:
+                    del owner.__deepcopy__
+                else:
+                    owner.__deepcopy__ = original
+
+    return restore
+
+
+def omegaconf_speedups() -> Callable[[], None]:
+    """:func:`libyaml_for_omegaconf` and :func:`fast_config_copies`; returns a function that puts both back."""
+    restores = [libyaml_for_omegaconf(), fast_config_copies()]
+
+    def restore() -> None:
+        for undo in reversed(restores):
+            undo()
 
     return restore
 

@@ -77,7 +77,8 @@ def test_a_worker_scans_hydras_plugins_once():
     .hydra files by libyaml from then on (libyaml_for_omegaconf).
 
     Run in a fresh interpreter, as a worker is: each scan re-executes Hydra's plugin modules in place, so doing it
-    in the test process would leave later tests with config sources whose classes are no longer the modules'."""
+    in the test process would leave later tests with config sources whose classes are no longer the modules'.
+    And its jobs' configs are copied by the faster copies (fast_config_copies)."""
     script = textwrap.dedent("""
         import pickle
         from hydra.core.plugins import Plugins
@@ -88,6 +89,10 @@ def test_a_worker_scans_hydras_plugins_once():
         import yaml, omegaconf.omegaconf
         libyaml = getattr(omegaconf.omegaconf.get_omega_conf_dumper, "ddmr_libyaml", False)
         assert libyaml == yaml.__with_libyaml__, "the worker's .hydra files are not emitted by libyaml"
+        from ddmr_cli import compat
+        from omegaconf import base, nodes
+        assert base.Metadata.__deepcopy__ is compat._metadata_deepcopy, "the worker copies metadata generically"
+        assert nodes.StringNode.__deepcopy__ is compat._value_node_deepcopy, "the worker constructs node copies"
         Singleton.set_state(Singleton.get_state())
         first = dict(Plugins.instance().class_name_to_class)
         Singleton.set_state(Singleton.get_state())
@@ -160,3 +165,90 @@ def test_libyaml_for_omegaconf_emits_the_same_data_and_is_put_back():
         assert yaml.safe_load(b) == yaml.safe_load(a) == OmegaConf.to_container(cfg)
         assert OmegaConf.to_container(OmegaConf.create(b)) == OmegaConf.to_container(cfg)
     assert OmegaConf.create(fast[0]).sci == "1e3"  # a string OmegaConf would read as a float is quoted
+
+
+def _node_pairs(a, b):
+    """Every node of two configs of the same shape, in step (depth first), and each one's parent in its config."""
+    todo = [(a, b)]
+    while todo:
+        x, y = todo.pop()
+        yield x, y
+        cx, cy = x.__dict__.get("_content"), y.__dict__.get("_content")
+        if isinstance(cx, dict):
+            assert isinstance(cy, dict) and list(cx) == list(cy)
+            todo.extend((cx[k], cy[k]) for k in cx)
+        elif isinstance(cx, list):
+            assert isinstance(cy, list) and len(cx) == len(cy)
+            todo.extend(zip(cx, cy))
+        else:
+            assert cx == cy or cx is cy
+
+
+def test_fast_config_copies_make_omegaconfs_copies_and_are_put_back():
+    """copy.deepcopy of a config with the faster metadata and value-node copies (what Hydra's run_job does four times
+    a job, in ddmr's workers and runs) gives what OmegaConf's own gives, node by node: the same classes, fields,
+    values (the same objects), parents (each the copy's own), metadata (equal, not shared: a flag set on the copy
+    leaves the original as it was), on a job's whole config with its hydra node and on a config with flags, lists,
+    an enum, interpolations, a structured node and a filled resolver cache. A second install does nothing; the
+    restore puts OmegaConf's own copies back."""
+    import copy
+    import enum
+    from dataclasses import dataclass, field
+
+    from omegaconf import base, nodes
+
+    from ddmr_cli.config import compose_config
+
+    class Colour(enum.Enum):
+        RED = 1
+
+    @dataclass
+    class Gains:
+        k: float = 1.5
+        names: list = field(default_factory=lambda: ["a", "b"])
+
+    mixed = OmegaConf.create({"a": 1, "b": "x", "c": 2.5, "d": True, "e": None, "f": b"raw", "list": [1, "two", {"z": 3}],
+                              "interp": "${a}", "deep": {"readonly": {"v": 1}}})
+    mixed.colour = Colour.RED  # an EnumNode (OmegaConf's own copy stays)
+    mixed.gains = OmegaConf.structured(Gains)
+    OmegaConf.set_readonly(mixed.deep.readonly, True)
+    OmegaConf.set_struct(mixed.gains, True)
+    mixed._get_node("a")._metadata.resolver_cache["r"]["k"] = "cached"
+    configs = [compose_config(["run.n_runs=1"], return_hydra_config=True), mixed]
+    own = [copy.deepcopy(c) for c in configs]
+    originals = {name: getattr(nodes, name).__dict__["__deepcopy__"] for name in compat._VALUE_NODES}
+    restore = compat.fast_config_copies()
+    try:
+        assert base.Metadata.__dict__["__deepcopy__"] is compat._metadata_deepcopy
+        assert all(getattr(nodes, name).__dict__["__deepcopy__"] is compat._value_node_deepcopy
+                   for name in compat._VALUE_NODES)
+        fast = [copy.deepcopy(c) for c in configs]
+        compat.fast_config_copies()()  # installed already: its restore leaves them in place
+        assert base.Metadata.__dict__["__deepcopy__"] is compat._metadata_deepcopy
+    finally:
+        restore()
+    assert "__deepcopy__" not in base.Metadata.__dict__
+    assert all(getattr(nodes, name).__dict__["__deepcopy__"] is originals[name] for name in compat._VALUE_NODES)
+    counted = 0
+    for config, theirs, ours in zip(configs, own, fast):
+        assert OmegaConf.to_container(ours, resolve=False) == OmegaConf.to_container(theirs, resolve=False)
+        for (a, b), (o, _) in zip(_node_pairs(theirs, ours), _node_pairs(config, config)):
+            counted += 1
+            assert type(a) is type(b) and list(a.__dict__) == list(b.__dict__)
+            ma, mb = a.__dict__["_metadata"], b.__dict__["_metadata"]
+            assert type(ma) is type(mb) and ma.__dict__ == mb.__dict__ and mb is not o.__dict__["_metadata"]
+            assert mb.flags is not o.__dict__["_metadata"].flags
+            assert mb.resolver_cache is not o.__dict__["_metadata"].resolver_cache
+            if "_val" in a.__dict__:
+                assert b.__dict__["_val"] is a.__dict__["_val"] and b.__dict__["_flags_cache"] is None
+            for child in (b.__dict__.get("_content") or {}).values() if isinstance(b.__dict__.get("_content"),
+                                                                                   dict) else ():
+                assert child.__dict__["_parent"] is b  # each node's parent is the copy's own
+    assert counted > 250
+    copied = fast[1]
+    assert OmegaConf.is_readonly(copied.deep.readonly) and OmegaConf.is_struct(copied.gains)
+    assert copied.interp == 1 and copied.colour is Colour.RED
+    OmegaConf.set_readonly(copied.deep.readonly, False)
+    copied._get_node("a")._metadata.resolver_cache["r"]["k"] = "changed"
+    assert OmegaConf.is_readonly(mixed.deep.readonly)  # the original's metadata is its own
+    assert mixed._get_node("a")._metadata.resolver_cache["r"]["k"] == "cached"

@@ -194,9 +194,9 @@ def host_ceiling(cores: int, iterations: int, repeats: int = REPEATS,
 
 def hydra_job_floor(repeats: int) -> tuple[float, float]:
     """Hydra's own work per job in ms of one core, min and median of ``repeats``: ``hydra.core.utils.run_job``
-    (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files, emitted by
-    libyaml as in ddmr's workers: :func:`ddmr_cli.compat.libyaml_for_omegaconf`) around a task that does nothing
-    (:func:`ddmr_cli.compat.run_hydra_job`), on section 3b's job config, in this process."""
+    (what every launcher runs per job: the config copies and the job's three ``.hydra`` YAML files, with the
+    emitter and the copies of ddmr's workers: :func:`ddmr_cli.compat.omegaconf_speedups`) around a task that does
+    nothing (:func:`ddmr_cli.compat.run_hydra_job`), on section 3b's job config, in this process."""
     import copy
     import statistics
 
@@ -206,7 +206,7 @@ def hydra_job_floor(repeats: int) -> tuple[float, float]:
     base = compose_config(["run.n_runs=1", "simulation.duration=0.2", "run.plots=false", "run.progress=false"],
                           return_hydra_config=True)
     times = []
-    restore_yaml = compat.libyaml_for_omegaconf()
+    restore_omegaconf = compat.omegaconf_speedups()
     try:
         with tempfile.TemporaryDirectory(prefix="ddmr-bench-") as tmp:
             base.hydra.sweep.dir = tmp
@@ -217,7 +217,7 @@ def hydra_job_floor(repeats: int) -> tuple[float, float]:
                 compat.run_hydra_job(lambda task_cfg: None, cfg)
                 times.append(1000.0 * (time.perf_counter() - started))
     finally:
-        restore_yaml()
+        restore_omegaconf()
     return min(times[1:]), statistics.median(times[1:])
 
 

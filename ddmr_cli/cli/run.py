@@ -132,10 +132,10 @@ def cmd_run(argv: list[str]) -> int:
     if INFO_FLAGS & flags.keys():  # no job runs: Hydra prints what was asked for
         return hydra(argv, completing=bool({"-sc", "--shell-completion"} & flags.keys()))
     argv, config_dir, search_dir = config_dirs(argv)
-    from ddmr_cli.compat import libyaml_for_omegaconf
+    from ddmr_cli.compat import omegaconf_speedups
     from ddmr_cli.config.compose_once import compositions_once
 
-    restore_yaml = libyaml_for_omegaconf()  # the jobs' .hydra files that Hydra writes in this process
+    restore_omegaconf = omegaconf_speedups()  # the jobs' .hydra files and config copies Hydra makes in this process
     try:
         with compositions_once():  # our validation, Hydra's get_mode and its run compose the config once (issue 28)
             try:
@@ -147,7 +147,7 @@ def cmd_run(argv: list[str]) -> int:
                 return EXIT_FAILED
             return run_locked(launch)
     finally:
-        restore_yaml()
+        restore_omegaconf()
 
 
 def run_locked(launch: Launch) -> int:

@@ -136,13 +136,14 @@ class SweepConfigLoader:
     def __setstate__(self, state: dict) -> None:
         """Unpickled in a launcher's worker, before the job restores Hydra's state (``Singleton.set_state``, which
         scans every ``hydra_plugins`` module again): the scan is made once per worker process
-        (:func:`ddmr_cli.compat.cache_plugin_scan`), and the job's ``.hydra`` files are emitted by libyaml
-        (:func:`ddmr_cli.compat.libyaml_for_omegaconf`: the worker belongs to the launcher, so for good)."""
-        from ddmr_cli.compat import cache_plugin_scan, libyaml_for_omegaconf
+        (:func:`ddmr_cli.compat.cache_plugin_scan`), and the job's ``.hydra`` files are emitted by libyaml and its
+        config copied with the faster metadata copies (:func:`ddmr_cli.compat.omegaconf_speedups`: the worker
+        belongs to the launcher, so for good)."""
+        from ddmr_cli.compat import cache_plugin_scan, omegaconf_speedups
 
         self.__dict__.update(state)
         cache_plugin_scan()
-        libyaml_for_omegaconf()
+        omegaconf_speedups()
 
     def __getattr__(self, name: str):  # load_configuration, get_search_path, get_sources, list_groups, ...
         if name == "inner":  # not set yet (unpickling)
