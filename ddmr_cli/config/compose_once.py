@@ -137,8 +137,8 @@ class SweepConfigLoader:
         """Unpickled in a launcher's worker, before the job restores Hydra's state (``Singleton.set_state``, which
         scans every ``hydra_plugins`` module again): the scan is made once per worker process
         (:func:`ddmr_cli.compat.cache_plugin_scan`), and the job's ``.hydra`` files are emitted by libyaml and its
-        config copied with the faster metadata copies (:func:`ddmr_cli.compat.omegaconf_speedups`: the worker
-        belongs to the launcher, so for good)."""
+        config copied by the direct copies of node metadata and value nodes (:func:`ddmr_cli.compat.omegaconf_speedups`:
+        the worker belongs to the launcher, so for good)."""
         from ddmr_cli.compat import cache_plugin_scan, omegaconf_speedups
 
         self.__dict__.update(state)

@@ -102,8 +102,8 @@ def _window(ordered, base, m, k, k_next, margin, mean):
 @law
 def _count_collect(column, n, lo1, hi1, lo2, hi2, inside1, inside2):
     """How many values of ``column[:n]`` lie below ``lo1`` and below ``lo2``, and the values inside ``[lo1, hi1]``
-    into ``inside1`` and those inside ``[lo2, hi2]`` into ``inside2``, in run order, with their counts. Branch-free
-    (every value is stored, and kept, the count moving on, when it is inside), so no misprediction, one pass."""
+    into ``inside1`` and those inside ``[lo2, hi2]`` into ``inside2``, in run order, with their counts. One
+    branch-free pass: every value is stored at the next free place, which moves on only when the value is inside."""
     below1 = below2 = m1 = m2 = 0
     for r in range(n):
         v = column[r]
