@@ -6,8 +6,9 @@ Prints the machine line, then
    the same loop on the same noise streams (:mod:`ddmr_cli.bench.reference`), timed in the same process, and the
    ratios, of the engine as ``ddmr run`` runs it and without the seed bands the reference does not compute (the
    target: the engine at most 1.5x slower at equal work); on every core, beside what every core gives independent
-   processes of pure CPU work on this machine (:func:`host_ceiling`, the most threads can give), as plain Python
-   (the fallback), and the compile and cache-load times;
+   processes of pure CPU work on this machine (:func:`host_ceiling`, the most threads can give) and what it gives
+   independent batches of the engine's own work, one a thread (:func:`engine_ceiling`: what splitting one batch
+   costs), as plain Python (the fallback), and the compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
 3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it (and when the report printed
    its verdicts); 3b. of a 200-job sweep of one-seed 0.2 s runs (the per-job overhead), and Hydra's own work per
@@ -164,6 +165,40 @@ def thread_scaling(batch: int, controller: str, duration: float,
     one, many = _alternating(repeats, lambda: engine_throughput(batch, controller, duration, threads=1),
                              lambda: engine_throughput(batch, controller, duration, threads=0))
     return statistics.median(one), statistics.median(many), statistics.median(m / o for o, m in zip(one, many))
+
+
+def _batches_wall(sims: list, batch: int) -> float:
+    """Wall seconds of one batch of ``batch`` runs of each of ``sims`` stepped at once, each from start to end by a
+    thread of its own (``simulate(threads=1)``: its own simulation, nothing shared with the others)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ddmr_cli.engine.simulation import simulate
+
+    with ThreadPoolExecutor(len(sims)) as pool:
+        started = time.perf_counter()
+        for future in [pool.submit(simulate, sim, range(batch), threads=1) for sim in sims]:
+            future.result()
+        return time.perf_counter() - started
+
+
+def engine_ceiling(cores: int, batch: int, controller: str, duration: float, repeats: int = REPEATS,
+                   wall: Callable[[int], float] | None = None) -> float:
+    """What ``cores`` cores give the engine's own work on this machine now: ``cores`` independent batches at once,
+    one a thread, over one alone (the throughput ratio), the median of ``repeats`` alternating pairs (``wall(n)``:
+    seconds of ``n`` batches at once; :func:`_batches_wall` by default). The engine's threads split one batch and
+    meet twice a chunk (after the steps, after the bands' reduction) around its serial set-up and metrics; their
+    ratio over this one is what that splitting costs, apart from what the host gives (:func:`host_ceiling`)."""
+    import statistics
+
+    if wall is None:
+        sims = [_simulation(controller, duration) for _ in range(cores)]
+        _batches_wall(sims[:1], 1)  # warm-up: the compiled step loop loaded (or compiled) before any timing
+
+        def wall(n: int) -> float:
+            return _batches_wall(sims[:n], batch)
+
+    alone, together = _alternating(repeats, lambda: wall(1), lambda: wall(cores))
+    return statistics.median(cores * a / t for a, t in zip(alone, together))
 
 
 #: a fixed piece of pure CPU work (no memory traffic, no threads, no library) for :func:`host_ceiling`
@@ -367,6 +402,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"   this machine's own ceiling: {cores} independent processes of pure CPU work at once run at {ceiling:.2f}x "
               f"one alone (the median of {REPEATS} alternating pairs), the most {cores} threads can give here; the "
               f"engine's threads reach {ratio / ceiling:.0%} of it")
+        with measuring(f"{cores} independent batches at once"):
+            own = engine_ceiling(cores, big, "smc_ndo_nno", durations[big])
+        print(f"   the engine's own ceiling: {cores} independent batches of the same runs at once, one a thread (nothing "
+              f"shared), run at {own:.2f}x one alone (the median of {REPEATS} alternating pairs); one batch split over "
+              f"{cores} threads reaches {ratio / own:.0%} of it (the rest: the meeting points of its chunks, its serial "
+              f"set-up and metrics)")
     with measuring("the laws as plain Python"):
         python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
