@@ -99,6 +99,36 @@ else:
     standard_normals_of = None
 
 
+def stream_of(streams, r: int):
+    """Run ``r``'s noise stream in the step loop: ``streams[r]``, its generator (``streams``: a list of
+    ``numpy.random.Generator``) where the loop runs as Python; compiled, numba's bit-generator value of the
+    ``bitgen_t`` at the address ``streams[r]`` (``streams``: :func:`addresses`)."""
+    return streams[r]
+
+
+def next_normal(stream) -> float:
+    """The stream's next standard normal: numpy's ``Generator.standard_normal()``; compiled, numba's ziggurat on the
+    same bit generator (what ``standard_normal`` runs compiled), the same number, the same state after it. A run's
+    normals drawn one at a time in the loop are the numbers ``standard_normal(size)`` gives at once."""
+    return stream.standard_normal()
+
+
+if AVAILABLE:
+    from numba.extending import overload
+
+    @overload(stream_of, inline="always")
+    def _stream_of_compiled(streams, r):
+        def impl(streams, r):
+            return bit_generator_at(streams[r])
+        return impl
+
+    @overload(next_normal, inline="always")
+    def _next_normal_compiled(stream):
+        def impl(stream):
+            return random_standard_normal(stream)
+        return impl
+
+
 #: numpy's ``SeedSequence`` constants (``numpy/random/bit_generator.pyx``): the pool's hash, the mixer, the output hash
 _INIT_A, _MULT_A, _MIX_MULT_L, _MIX_MULT_R = 0x43B0D7E5, 0x931E8875, 0xCA01F9DD, 0x4973F715
 _INIT_B, _MULT_B = 0x8B51F9DD, 0x58F38DED
@@ -191,9 +221,23 @@ def addresses(generators: Sequence[np.random.Generator]) -> np.ndarray:
     return np.array([pointer(g.bit_generator.capsule, b"BitGenerator") for g in generators], dtype=np.uint64)
 
 
+def require_compiled_draws() -> None:
+    """Raise :class:`~ddmr_cli.errors.EngineUnavailable` where the step loop runs compiled but cannot draw compiled
+    (a numba without the parts this module builds on): it draws its runs' normals as it steps, through them."""
+    if jit_enabled() and not AVAILABLE:
+        import numba
+
+        from ddmr_cli.errors import EngineUnavailable
+
+        raise EngineUnavailable(f"numba {numba.__version__} lacks the bit-generator parts ddmr's compiled step loop "
+                                f"draws its noise through (ddmr_cli/bit_generators.py); install a numba that has them "
+                                f"(0.59-0.61 are tested) or set NUMBA_DISABLE_JIT=1 (the same numbers, slowly)")
+
+
 def drawn_compiled() -> bool:
     """True when blocks of runs are drawn by one compiled call (numba installed and enabled, and its parts here)."""
     return AVAILABLE and jit_enabled()
 
 
-__all__ = ["AVAILABLE", "addresses", "drawn_compiled", "generators", "seed_words", "standard_normals_of"]
+__all__ = ["AVAILABLE", "addresses", "drawn_compiled", "generators", "next_normal", "require_compiled_draws", "seed_words", "standard_normals_of",
+           "stream_of"]

@@ -13,6 +13,11 @@ class DDMRError(Exception):
     """Base class of every error raised by ddmr."""
 
 
+class EngineUnavailable(DDMRError, RuntimeError):
+    """The compiled engine cannot run with the installed numba: it lacks the parts the step loop draws its runs' noise
+    through (:mod:`ddmr_cli.bit_generators`)."""
+
+
 class ConfigError(DDMRError, ValueError):
     """A configuration value breaks a rule.
 

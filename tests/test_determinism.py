@@ -151,7 +151,7 @@ def test_chunks_cut_between_control_instants_and_band_points_change_nothing(monk
     sim = paper_simulation(*overrides)
     default = simulate(sim, seeds=[0, 1, 2], keep_series=[1], threads=1)
     assert default.bands["t"][1] == pytest.approx(2 * sim.dt)  # a grid point every other step
-    per_run_step = 8 * 3 + 8 * 8 // 2  # three normals, eight band channels every other step
+    per_run_step = 8 * 8 // 2  # eight band channels every other step (the runs draw their normals as they step)
     monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 67 * 3 * per_run_step)
     monkeypatch.setattr(simulation_module, "MIN_CHUNK_STEPS", 1)
     done = []
@@ -276,6 +276,31 @@ def test_noise_drawn_by_blocks_of_runs_is_the_noise_drawn_at_once():
     assert np.array_equal(blocks, whole)
     with pytest.raises(ValueError, match="shape"):
         streams.next_chunk(40, np.empty((5, 39, 3)), (0, 2))
+
+
+def test_the_step_loops_draws_one_at_a_time_are_numpys_stream():
+    """The step loop draws each run's normals one at a time as it steps (``stream_of``, ``next_normal``), compiled
+    (numba's ziggurat on the bit generator at the run's address) and as plain Python (the generator's own
+    ``standard_normal()``): the numbers numpy's ``standard_normal(size)`` gives the run's generator at once, and the
+    generator's state after them."""
+    from ddmr_cli import bit_generators
+    from ddmr_cli.compiled import law
+
+    def draw_each(streams, out):
+        for r in range(out.shape[0]):
+            stream = bit_generators.stream_of(streams, r)
+            for i in range(out.shape[1]):
+                out[r, i] = bit_generators.next_normal(stream)
+
+    seeds = (3, 11, 2**32 - 1)
+    for drawn_by, streams_of in ((law(draw_each), bit_generators.addresses), (draw_each, list)):
+        ours = [np.random.default_rng(seed) for seed in seeds]
+        drawn = np.empty((len(seeds), 50_000))
+        drawn_by(streams_of(ours), drawn)
+        for run, seed in enumerate(seeds):
+            numpys = np.random.default_rng(seed)
+            assert np.array_equal(drawn[run], numpys.standard_normal(50_000)), (drawn_by, seed)
+            assert ours[run].bit_generator.state == numpys.bit_generator.state
 
 
 def test_the_compiled_draw_is_numpys_stream():

@@ -220,3 +220,15 @@ def test_a_warm_cache_keeps_controllers_of_one_module_apart(tmp_path):
     both = run("smc_ndo", "smc_ndo_nno")
     assert both == fresh
     assert fresh["smc_ndo"] != fresh["smc_ndo_nno"]
+
+
+def test_a_numba_without_the_bit_generator_parts_is_named_not_run(monkeypatch):
+    """The compiled loop draws its runs' noise through numba's bit-generator parts (ddmr_cli/bit_generators.py): where
+    numba lacks them, simulate says so (EngineUnavailable, naming numba and NUMBA_DISABLE_JIT) before any step."""
+    from ddmr_cli import bit_generators
+    from ddmr_cli.errors import EngineUnavailable
+
+    sim = make_simulation(controller=make_smc(), terrain=paper_terrain(), scenario=paper_scenario(1), duration=0.05)
+    monkeypatch.setattr(bit_generators, "AVAILABLE", False)
+    with pytest.raises(EngineUnavailable, match="numba .* NUMBA_DISABLE_JIT"):
+        simulate(sim, range(2))

@@ -17,6 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ddmr_cli import bit_generators
 from ddmr_cli.compiled import jit_enabled, plain, thread_count
 from ddmr_cli.checks import finite, first_non_finite, non_negative, one_of, per_wheel, positive
 from ddmr_cli.control.base import KINDS, STABILITY_LIMIT, SURFACE, WheelController
@@ -25,7 +26,7 @@ from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import check_single_signature, compiled_external_step, compiled_run_chunk
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
-from ddmr_cli.model.noise import CHANNELS, NoiseStreams, SensorNoise, ou_coefficients
+from ddmr_cli.model.noise import NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SimulationResult
 from ddmr_cli.engine.series import series_channels
 from ddmr_cli.errors import ConfigError
@@ -39,11 +40,9 @@ from ddmr_cli.model.trajectory import StraightLine, Trajectory, reference_table
 from ddmr_cli.plant.base import ExternalPlant, check_state
 
 INTEGRATORS = ("euler", "rk4")
-#: bytes of standard normals per run and step buffered in a chunk (the only per-step buffer of unkept runs)
-_BYTES_PER_RUN_STEP = 8 * len(CHANNELS)
-#: bytes of a chunk's per-step buffers (normals, band rows): 8 MiB, not 16, took a 10,000-seed run's peak memory 4 MiB
-#: lower at the same speed (23 steps a chunk, not 46; 3 alternating pairs: 9.80 s against 10.06 s, medians); a
-#: table4 batch of 50 seeds still runs 4096 steps a chunk
+#: bytes of a chunk's per-step buffers (band rows; the sensor's normals when it is noisy; the runs draw their
+#: disturbance normals as they step, with no buffer): 8 MiB, not 16, took a 10,000-seed run's peak memory 4 MiB lower
+#: at the same speed when the disturbance normals were buffered too; a table4 batch of 50 seeds runs 4096 steps a chunk
 CHUNK_BUDGET = 8 * 2**20
 MAX_CHUNK_STEPS = 4096
 #: the fewest steps of a chunk: low enough that the budget holds for huge batches too (a floor of 64 made 10,000
@@ -60,7 +59,7 @@ MIN_BLOCK_RUNS = 32
 def chunk_steps(bytes_per_run_step: int, n_runs: int) -> int:
     """Steps per chunk: as many as :data:`CHUNK_BUDGET` bytes of per-step buffers hold for ``n_runs`` runs,
     within [:data:`MIN_CHUNK_STEPS`, :data:`MAX_CHUNK_STEPS`]."""
-    return int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // (bytes_per_run_step * n_runs))))
+    return int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // max(1, bytes_per_run_step * n_runs))))
 
 
 @dataclass
@@ -308,30 +307,28 @@ class _Batch:
     chunk: int
 
     def chunks(self, n_steps: int):
-        """The chunks of a run of ``n_steps`` steps: ``(k0, n, xi, band_buffer, first, end)`` for each, the first
-        step and the size, the standard normals' buffer (reused while the size is the same; :meth:`draw` fills
-        it), the band buffer and its range of grid points (the sensor normals' buffer is :attr:`xs`). The band
-        buffer is the front of one allocation made for the largest chunk (a chunk is reduced before the next is
-        stepped): chunks of the same size do not allocate and free megabytes each (the allocator keeps what it
-        was given back: 10,000 seeds peaked 10 MiB higher)."""
-        n_runs, xi, k0 = len(self.runs), None, 0
+        """The chunks of a run of ``n_steps`` steps: ``(k0, n, band_buffer, first, end)`` for each, the first step
+        and the size, the band buffer and its range of grid points; the sensor normals' buffer, when the sensor is
+        noisy, is :attr:`xs` (reused while the size is the same; :meth:`draw` fills it). The runs draw their
+        disturbance normals as they step (:func:`ddmr_cli.bit_generators.next_normal`): no buffer. The band buffer
+        is the front of one allocation made for the largest chunk (a chunk is reduced before the next is stepped):
+        chunks of the same size do not allocate and free megabytes each (the allocator keeps what it was given
+        back: 10,000 seeds peaked 10 MiB higher)."""
+        n_runs, k0 = len(self.runs), 0
         widest = self.bands.most_points(self.chunk) if self.bands is not None else 0
         band_memory = np.empty(n_runs * widest * len(BAND_CHANNELS))
         while k0 < n_steps:
             n = min(self.chunk, n_steps - k0)
-            if xi is None or xi.shape[1] != n:
-                xi = np.empty((n_runs, n, NoiseStreams.channels))
-                if self.sensor_noise is not None:
-                    self.xs = np.empty((n_runs, n, len(NOISE_CHANNELS)))
+            if self.sensor_noise is not None and self.xs.shape[1] != n:
+                self.xs = np.empty((n_runs, n, len(NOISE_CHANNELS)))
             first, end = self.bands.grid_range(k0, n) if self.bands is not None else (0, 0)
             band_buffer = band_memory[:n_runs * (end - first) * len(BAND_CHANNELS)].reshape(
                 n_runs, end - first, len(BAND_CHANNELS))
-            yield k0, n, xi, band_buffer, first, end
+            yield k0, n, band_buffer, first, end
             k0 += n
 
-    def draw(self, n: int, xi: np.ndarray, block: tuple[int, int]) -> None:
-        """This chunk's normals of the runs ``block`` (first, end)."""
-        self.noise.next_chunk(n, xi, block)
+    def draw(self, n: int, block: tuple[int, int]) -> None:
+        """This chunk's sensor normals of the runs ``block`` (first, end), when the sensor is noisy."""
         if self.sensor_noise is not None:
             self.sensor_noise.next_chunk(n, self.xs, block)
 
@@ -341,18 +338,19 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, threads: int, progre
     n_runs = len(b.runs)
     loop = None  # one compiled copy per complete call signature (kernels.py), chosen at the first chunk
     n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
+    streams = b.noise.streams()
     blocks = blocks_of(n_runs, n_threads)
     pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
     try:
         with np.errstate(all="ignore"):
-            for k0, n, xi, band_buffer, first, end in b.chunks(n_steps):
-                args = (k0, n, b.world, b.plant, b.params, b.runs, b.lines, b.controller_state, xi, b.xs, b.sums,
-                        b.accumulators, b.series, b.slot, band_buffer, first)
+            for k0, n, band_buffer, first, end in b.chunks(n_steps):
+                args = (k0, n, b.world, b.plant, b.params, b.runs, b.lines, b.controller_state, streams, b.xs,
+                        b.sums, b.accumulators, b.series, b.slot, band_buffer, first)
                 if loop is None:
                     loop = compiled_run_chunk(law_module, args + (0, n_runs), compiling)
 
-                def advance(block):  # draw this block's normals, then step it (each worker thread its own block)
-                    b.draw(n, xi, block)
+                def advance(block):  # this block's sensor normals, then its steps (each worker thread its own block)
+                    b.draw(n, block)
                     loop(*args, *block)
 
                 _each(pool, advance, blocks)
@@ -383,14 +381,15 @@ def _run_external(b: _Batch, law_module: str, plant: ExternalPlant, seeds: list[
                 np.array(runs["w"]))
     _take_state(runs, plant, n_runs)
     step_out = np.zeros((n_runs, 6))
+    streams = b.noise.streams()
     control = account = None
     try:
         with np.errstate(all="ignore"):
-            for k0, n, xi, band_buffer, first, end in b.chunks(n_steps):
-                b.draw(n, xi, (0, n_runs))
+            for k0, n, band_buffer, first, end in b.chunks(n_steps):
+                b.draw(n, (0, n_runs))
                 for j in range(n):
                     k = k0 + j
-                    control_args = (k, j, b.world, b.plant, b.params, runs, b.lines, b.controller_state, xi, b.xs,
+                    control_args = (k, j, b.world, b.plant, b.params, runs, b.lines, b.controller_state, streams, b.xs,
                                     step_out)
                     if control is None:
                         control, account = compiled_external_step(law_module, control_args,
@@ -462,6 +461,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     if not seeds:
         raise ConfigError("run.n_runs", 0, "must be >= 1")
     sim.validate()
+    bit_generators.require_compiled_draws()
     started = time.perf_counter()
     n_runs, n_steps, dt = len(seeds), sim.n_steps, float(sim.dt)
     keep_idx = [seeds.index(s) for s in dict.fromkeys(int(k) for k in keep_series) if s in seeds]
@@ -485,7 +485,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     series = np.zeros((len(keep_idx), n_steps if keep_idx else 1, len(channels)))
     slot = np.full(n_runs, -1, dtype=np.int64)
     slot[keep_idx] = np.arange(len(keep_idx))
-    bytes_per_run_step = (_BYTES_PER_RUN_STEP + (8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
+    bytes_per_run_step = ((8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
                           + (8 * len(NOISE_CHANNELS) if sensor_noise is not None else 0))
     chunk = chunk_steps(bytes_per_run_step, n_runs)
     plant = sim.robot.plant()

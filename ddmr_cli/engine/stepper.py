@@ -39,12 +39,14 @@ from ddmr_cli.model.kinematics import deviation, inverse, pose_error
 from ddmr_cli.model.dynamics import saturate, wheel_acceleration
 from ddmr_cli.model.scenario import damping_scale
 from ddmr_cli.model.terrain import zone_of
+from ddmr_cli.bit_generators import next_normal, stream_of
 
 @law
-def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, xi, xs, sums, accumulators, series,
-              series_slot, bands, band_first, first_run, end_run):
-    """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; ``xi[r, j]`` are
-    run r's standard normals, ``xs[r, j]`` its sensor normals (``xs`` is a dummy unless the sensor is noisy).
+def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, streams, xs, sums, accumulators,
+              series, series_slot, bands, band_first, first_run, end_run):
+    """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; run r draws its
+    standard normals from ``stream_of(streams, r)`` as it steps (three a step: :mod:`ddmr_cli.bit_generators`),
+    ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the sensor is noisy).
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
     ``runs``, ``controller_state`` and ``accumulators`` (one record per run) and ``lines`` (each run's actuator
@@ -54,12 +56,12 @@ def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, 
     so threads can advance disjoint blocks of runs at once.
     """
     for r in range(first_run, end_run):
-        run_steps(k0, n_steps, world, plant, params, r, runs[r], lines[r], controller_state[r], xi, xs, sums,
+        run_steps(k0, n_steps, world, plant, params, r, runs[r], lines[r], controller_state[r], streams, xs, sums,
                   accumulators[r], series, series_slot[r], bands, band_first)
 
 
 @law
-def run_steps(k0, n_steps, world, plant, params, r, run, line, st, xi, xs, sums, acc, series, slot, bands,
+def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, sums, acc, series, slot, bands,
               band_first):
     """One run's steps ``k0 .. k0 + n_steps - 1`` (the loop the module docstring describes)."""
     sen, act, m = world.sensor, world.actuator, world.control_steps
@@ -80,6 +82,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, xi, xs, sums,
     to_control, kc = (m - k0 % m) % m, (k0 + m - 1) // m
     stride = world.band_stride
     to_band, band_j = (stride - k0 % stride) % stride, 0  # band_j: the grid point's row in this chunk's buffer
+    stream = stream_of(streams, r)
     for j in range(n_steps):
         k = k0 + j
         x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
@@ -116,10 +119,10 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, xi, xs, sums,
             kc += 1
         # the motor's voltage: the held command, delayed and lagged (§10)
         u_R, u_L = actuator.apply(act, run, line, k, us_R, us_L)
-        # this step's disturbances, held over it (5)
-        n_R = ou_step(world.ou_a[0], world.ou_b[0], n_R, xi[r, j, 0])
-        n_L = ou_step(world.ou_a[1], world.ou_b[1], n_L, xi[r, j, 1])
-        n_u = ou_step(world.ou_a[2], world.ou_b[2], n_u, xi[r, j, 2])
+        # this step's disturbances, held over it (5): the run's next three normals, in the channels' order
+        n_R = ou_step(world.ou_a[0], world.ou_b[0], n_R, next_normal(stream))
+        n_L = ou_step(world.ou_a[1], world.ou_b[1], n_L, next_normal(stream))
+        n_u = ou_step(world.ou_a[2], world.ou_b[2], n_u, next_normal(stream))
         phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)
         rough = world.roughness[zone] * world.roughness_on[phase]
@@ -177,7 +180,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, xi, xs, sums,
 # holds the two orchestrations to one another: the wheel plant stepped from Python matches run_steps.
 
 @law
-def external_control(k, j, world, plant, params, runs, lines, controller_state, xi, xs, step_out):
+def external_control(k, j, world, plant, params, runs, lines, controller_state, streams, xs, step_out):
     """Step ``k`` (the ``j``-th of its chunk) of every run up to the plant's step: the control instant when it is
     one, the motor's voltage and the step's disturbances, from the true state the run record holds (the plant's,
     written by :func:`external_account`). Writes ``step_out[r] = (u_R, u_L, b, rough, zone, phase)`` for the
@@ -193,9 +196,10 @@ def external_control(k, j, world, plant, params, runs, lines, controller_state, 
             external_control_instant(world, plant, params, run, line, st, k, xs, r, j, x, y, theta, w_R, w_L)
         u_R, u_L = actuator.apply(world.actuator, run, line, k, run["u_sent"][0], run["u_sent"][1])
         # this step's disturbances (5): the roughness is the ground's, scenario 2's damping scale acts on the motor
-        n_R = ou_step(world.ou_a[0], world.ou_b[0], run["noise"][0], xi[r, j, 0])
-        n_L = ou_step(world.ou_a[1], world.ou_b[1], run["noise"][1], xi[r, j, 1])
-        n_u = ou_step(world.ou_a[2], world.ou_b[2], run["noise"][2], xi[r, j, 2])
+        stream = stream_of(streams, r)
+        n_R = ou_step(world.ou_a[0], world.ou_b[0], run["noise"][0], next_normal(stream))
+        n_L = ou_step(world.ou_a[1], world.ou_b[1], run["noise"][1], next_normal(stream))
+        n_u = ou_step(world.ou_a[2], world.ou_b[2], run["noise"][2], next_normal(stream))
         run["noise"][0], run["noise"][1], run["noise"][2] = n_R, n_L, n_u
         phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)

@@ -54,6 +54,12 @@ class NoiseStreams:
         #: where compiled code finds each generator's bit generator (:mod:`ddmr_cli.bit_generators`), or None
         self._addresses = bit_generators.addresses(self.generators) if bit_generators.drawn_compiled() else None
 
+    def streams(self):
+        """Each run's stream as the step loop draws from it (:func:`ddmr_cli.bit_generators.stream_of`): the
+        addresses of the generators' bit generators where the loop is compiled and draws through them, else the
+        generators themselves. Valid while this object lives."""
+        return self._addresses if self._addresses is not None else self.generators
+
     def initial_state(self) -> np.ndarray:
         """The OU processes' state before the first step, drawn from N(0, 1): shape ``(n_runs, 3)`` (each run's
         first three normals, drawn as a step's are)."""
