@@ -192,7 +192,7 @@ def engine_ceiling(cores: int, batch: int, controller: str, duration: float, rep
 
     if wall is None:
         sims = [_simulation(controller, duration) for _ in range(cores)]
-        _batches_wall(sims[:1], 1)  # warm-up: the compiled step loop loaded (or compiled) before any timing
+        _batches_wall(sims[:1], batch)  # warm-up, untimed: the step loop loaded (or compiled), first calls made
 
         def wall(n: int) -> float:
             return _batches_wall(sims[:n], batch)
