@@ -232,3 +232,19 @@ def test_a_numba_without_the_bit_generator_parts_is_named_not_run(monkeypatch):
     monkeypatch.setattr(bit_generators, "AVAILABLE", False)
     with pytest.raises(EngineUnavailable, match="numba .* NUMBA_DISABLE_JIT"):
         simulate(sim, range(2))
+
+
+@pytest.mark.parametrize("bytes_per_run_step, n_runs", [(0, 10_000), (0, 1000), (0, 50), (64, 1000), (12, 10_000),
+                                                         (0, 10**7)])
+def test_a_chunk_holds_no_more_run_steps_than_a_progress_report_may_wait_for(bytes_per_run_step, n_runs):
+    """Progress is reported after every chunk: with no per-step buffer (no bands, an ideal sensor) the memory budget
+    alone would let 10,000 seeds run 4096 steps unreported; a chunk is held to CHUNK_RUN_STEPS run-steps too, and to
+    the budget and the fewest and most steps."""
+    from ddmr_cli.engine import simulation
+
+    steps = simulation.chunk_steps(bytes_per_run_step, n_runs)
+    assert simulation.MIN_CHUNK_STEPS <= steps <= simulation.MAX_CHUNK_STEPS
+    assert steps == simulation.MIN_CHUNK_STEPS or steps * n_runs <= simulation.CHUNK_RUN_STEPS
+    assert steps == simulation.MIN_CHUNK_STEPS or steps * n_runs * bytes_per_run_step <= simulation.CHUNK_BUDGET
+    if n_runs == 50 and bytes_per_run_step == 0:
+        assert steps == simulation.MAX_CHUNK_STEPS  # a small batch still runs long chunks

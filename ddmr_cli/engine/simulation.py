@@ -45,6 +45,10 @@ INTEGRATORS = ("euler", "rk4")
 #: at the same speed when the disturbance normals were buffered too; a table4 batch of 50 seeds runs 4096 steps a chunk
 CHUNK_BUDGET = 8 * 2**20
 MAX_CHUNK_STEPS = 4096
+#: the most run-steps (steps x runs) of a chunk: progress is reported after every chunk, and this many take 0.3-0.5 s
+#: of one core (SMC-NDO-NNO at 4-7 M/s), so a batch of any size is never silent for long; with no per-step buffer
+#: (no bands, an ideal sensor) the memory budget alone would let 10,000 seeds run 4096 steps, seconds, unreported
+CHUNK_RUN_STEPS = 2**21
 #: the fewest steps of a chunk: low enough that the budget holds for huge batches too (a floor of 64 made 10,000
 #: seeds' band buffer 41 MiB), high enough that a chunk's Python work stays small beside its steps
 MIN_CHUNK_STEPS = 8
@@ -57,9 +61,10 @@ MIN_BLOCK_RUNS = 32
 
 
 def chunk_steps(bytes_per_run_step: int, n_runs: int) -> int:
-    """Steps per chunk: as many as :data:`CHUNK_BUDGET` bytes of per-step buffers hold for ``n_runs`` runs,
-    within [:data:`MIN_CHUNK_STEPS`, :data:`MAX_CHUNK_STEPS`]."""
-    return int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, CHUNK_BUDGET // max(1, bytes_per_run_step * n_runs))))
+    """Steps per chunk: as many as :data:`CHUNK_BUDGET` bytes of per-step buffers hold for ``n_runs`` runs, at most
+    :data:`CHUNK_RUN_STEPS` run-steps, within [:data:`MIN_CHUNK_STEPS`, :data:`MAX_CHUNK_STEPS`]."""
+    by_memory = CHUNK_BUDGET // max(1, bytes_per_run_step * n_runs)
+    return int(max(MIN_CHUNK_STEPS, min(MAX_CHUNK_STEPS, by_memory, CHUNK_RUN_STEPS // n_runs)))
 
 
 @dataclass
