@@ -18,11 +18,14 @@ interface to a bit generator: its state and its ``next_uint64``, ``next_uint32``
 order; numpy's ``numpy/random/bitgen.h``, the documented C API for extending ``numpy.random``) is found once, from
 the generator's ``capsule``, and compiled code builds numba's own bit-generator value from that address. numba's own
 ziggurat (:func:`numba.np.random.distributions.random_standard_normal`, what ``Generator.standard_normal``
-runs compiled) then draws the same numbers, and leaves the same state, as numpy's ``standard_normal``.
+runs compiled) then draws the same numbers, and leaves the same state, as numpy's ``standard_normal``. The step
+loop draws each run's normals one at a time as it steps (:func:`stream_of`, :func:`next_normal`: one definition,
+compiled through these addresses, or as plain Python on the generators themselves); :func:`standard_normals_of`
+draws a block of runs' rows at once (a run's first normals, the sensor's).
 
 Both numba names used here (the bit generator's data model and the ziggurat) are numba's internals: where a
-numba lacks them :data:`AVAILABLE` is False and numpy draws the noise, one generator per call (the same
-numbers). The addresses are valid while their generators live: the caller keeps the generators.
+numba lacks them :data:`AVAILABLE` is False, and the compiled step loop cannot draw: :func:`require_compiled_draws`
+says so before a run (``NUMBA_DISABLE_JIT=1`` runs the same numbers as Python). The addresses are valid while their generators live: the caller keeps the generators.
 """
 
 from __future__ import annotations
@@ -231,7 +234,7 @@ def require_compiled_draws() -> None:
 
         raise EngineUnavailable(f"numba {numba.__version__} lacks the bit-generator parts ddmr's compiled step loop "
                                 f"draws its noise through (ddmr_cli/bit_generators.py); install a numba that has them "
-                                f"(0.59-0.61 are tested) or set NUMBA_DISABLE_JIT=1 (the same numbers, slowly)")
+                                f"(0.68 has them) or set NUMBA_DISABLE_JIT=1 (the same numbers, slowly)")
 
 
 def drawn_compiled() -> bool:
@@ -239,5 +242,5 @@ def drawn_compiled() -> bool:
     return AVAILABLE and jit_enabled()
 
 
-__all__ = ["AVAILABLE", "addresses", "drawn_compiled", "generators", "next_normal", "require_compiled_draws", "seed_words", "standard_normals_of",
-           "stream_of"]
+__all__ = ["AVAILABLE", "addresses", "drawn_compiled", "generators", "next_normal", "require_compiled_draws",
+           "seed_words", "standard_normals_of", "stream_of"]

@@ -404,10 +404,10 @@ def main(argv: list[str] | None = None) -> int:
               f"engine's threads reach {ratio / ceiling:.0%} of it")
         with measuring(f"{cores} independent batches at once"):
             own = engine_ceiling(cores, big, "smc_ndo_nno", durations[big])
-        print(f"   the engine's own ceiling: {cores} independent batches of the same runs at once, one a thread (nothing "
-              f"shared), run at {own:.2f}x one alone (the median of {REPEATS} alternating pairs); one batch split over "
-              f"{cores} threads reaches {ratio / own:.0%} of it (the rest: the meeting points of its chunks, its serial "
-              f"set-up and metrics)")
+        print(f"   the engine's own ceiling: {cores} independent batches of the same runs at once, one a thread "
+              f"(nothing shared), run at {own:.2f}x one alone (the median of {REPEATS} alternating pairs); one batch "
+              f"split over {cores} threads reaches {ratio / own:.0%} of it (the rest: the meeting points of its "
+              f"chunks, its serial set-up and metrics)")
     with measuring("the laws as plain Python"):
         python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
