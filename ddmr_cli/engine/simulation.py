@@ -11,7 +11,6 @@ diverged with the time it happened; the others carry on unaffected.
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -26,6 +25,7 @@ from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import check_single_signature, compiled_external_step, compiled_run_chunk
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
+from ddmr_cli.engine.pipeline import run_chunks
 from ddmr_cli.model.noise import NoiseStreams, SensorNoise, ou_coefficients
 from ddmr_cli.engine.results import SimulationResult
 from ddmr_cli.engine.series import series_channels
@@ -58,6 +58,10 @@ MIN_CHUNK_STEPS = 8
 #: :data:`MIN_BLOCK_RUNS` runs
 BLOCKS_PER_THREAD = 4
 MIN_BLOCK_RUNS = 32
+#: band buffers that take turns when several threads step a batch (:func:`ddmr_cli.engine.pipeline.run_chunks`: a
+#: block steps on into the next chunk while the chunk before is reduced); the chunk budget counts every one, so the
+#: memory is that of one buffer at the same budget (chunks of half the steps)
+BAND_SLOTS = 2
 
 
 def chunk_steps(bytes_per_run_step: int, n_runs: int) -> int:
@@ -253,16 +257,6 @@ def _split(n: int, parts: int) -> list[tuple[int, int]]:
     return [(n * i // parts, n * (i + 1) // parts) for i in range(parts)]
 
 
-def _each(pool: ThreadPoolExecutor | None, fn: Callable, parts: list) -> None:
-    """``fn(part)`` for every part: in the pool's threads at once, or one after the other without a pool."""
-    if pool is None:
-        for part in parts:
-            fn(part)
-        return
-    for future in [pool.submit(fn, part) for part in parts]:
-        future.result()
-
-
 def _world(sim: Simulation, n_steps: int, hp: np.ndarray, hp_zi: np.ndarray, phase_base: int,
            bands: BandAccumulator | None) -> World:
     dt = float(sim.dt)
@@ -311,64 +305,88 @@ class _Batch:
     bands: BandAccumulator | None
     chunk: int
 
-    def chunks(self, n_steps: int):
-        """The chunks of a run of ``n_steps`` steps: ``(k0, n, band_buffer, first, end)`` for each, the first step
-        and the size, the band buffer and its range of grid points; the sensor normals' buffer, when the sensor is
-        noisy, is :attr:`xs` (reused while the size is the same; :meth:`draw` fills it). The runs draw their
-        disturbance normals as they step (:func:`ddmr_cli.bit_generators.next_normal`): no buffer. The band buffer
-        is the front of one allocation made for the largest chunk (a chunk is reduced before the next is stepped):
-        chunks of the same size do not allocate and free megabytes each (the allocator keeps what it was given
-        back: 10,000 seeds peaked 10 MiB higher)."""
-        n_runs, k0 = len(self.runs), 0
-        widest = self.bands.most_points(self.chunk) if self.bands is not None else 0
-        band_memory = np.empty(n_runs * widest * len(BAND_CHANNELS))
+    def plan(self, n_steps: int) -> list[tuple[int, int, int, int]]:
+        """The chunks of a run of ``n_steps`` steps, ``(k0, n, first, end)`` each: the first step, the size (every
+        chunk :attr:`chunk` steps but the last) and the range of band grid points that fall on its steps."""
+        chunks, k0 = [], 0
         while k0 < n_steps:
             n = min(self.chunk, n_steps - k0)
-            if self.sensor_noise is not None and self.xs.shape[1] != n:
-                self.xs = np.empty((n_runs, n, len(NOISE_CHANNELS)))
             first, end = self.bands.grid_range(k0, n) if self.bands is not None else (0, 0)
-            band_buffer = band_memory[:n_runs * (end - first) * len(BAND_CHANNELS)].reshape(
-                n_runs, end - first, len(BAND_CHANNELS))
-            yield k0, n, band_buffer, first, end
+            chunks.append((k0, n, first, end))
             k0 += n
+        return chunks
 
-    def draw(self, n: int, block: tuple[int, int]) -> None:
-        """This chunk's sensor normals of the runs ``block`` (first, end), when the sensor is noisy."""
+    def buffers(self, slots: int = 1) -> Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]]:
+        """The chunks' per-step buffers, allocated once for the largest chunk (chunks of the same size do not
+        allocate and free megabytes each: the allocator keeps what it was given back, 10,000 seeds peaked 10 MiB
+        higher), the band rows in ``slots`` that take turns. Returns ``views(i, n, first, end)``: chunk ``i``'s
+        sensor normals (:meth:`draw` fills them; :attr:`xs`, zeros never read, when the sensor is not noisy) and
+        band buffer, views of the front of those allocations (a shorter last chunk's sensor view overlaps the
+        chunk before's). The runs draw their disturbance normals as they step: no buffer."""
+        n_runs, channels = len(self.runs), len(BAND_CHANNELS)
+        widest = self.bands.most_points(self.chunk) if self.bands is not None else 0
+        band_memory = [np.empty(n_runs * widest * channels) for _ in range(slots)]
+        sensor_memory = np.empty(n_runs * self.chunk * len(NOISE_CHANNELS)) if self.sensor_noise is not None else None
+
+        def views(i: int, n: int, first: int, end: int) -> tuple[np.ndarray, np.ndarray]:
+            xs = (self.xs if sensor_memory is None else
+                  sensor_memory[:n_runs * n * len(NOISE_CHANNELS)].reshape(n_runs, n, len(NOISE_CHANNELS)))
+            band = band_memory[i % slots][:n_runs * (end - first) * channels].reshape(n_runs, end - first, channels)
+            return xs, band
+
+        return views
+
+    def chunks(self, n_steps: int):
+        """The chunks of :meth:`plan` one after the other with their buffers (:meth:`buffers`, one band slot):
+        ``(k0, n, xs, band_buffer, first, end)`` each."""
+        views = self.buffers()
+        for i, (k0, n, first, end) in enumerate(self.plan(n_steps)):
+            yield (k0, n, *views(i, n, first, end), first, end)
+
+    def draw(self, n: int, xs: np.ndarray, block: tuple[int, int]) -> None:
+        """A chunk's sensor normals of the runs ``block`` (first, end) into ``xs``, when the sensor is noisy."""
         if self.sensor_noise is not None:
-            self.sensor_noise.next_chunk(n, self.xs, block)
+            self.sensor_noise.next_chunk(n, xs, block)
 
 
-def _run_compiled(b: _Batch, law_module: str, n_steps: int, threads: int, progress, compiling) -> None:
-    """The wheel plant: every run advanced a chunk of steps at a time by the compiled loop, in threads."""
+def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, progress, compiling) -> None:
+    """The wheel plant: every run advanced a chunk of steps at a time by the compiled loop, blocks of runs in
+    ``n_threads`` threads, each block on to its next chunk as soon as it is free to
+    (:mod:`ddmr_cli.engine.pipeline`)."""
     n_runs = len(b.runs)
-    loop = None  # one compiled copy per complete call signature (kernels.py), chosen at the first chunk
-    n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs)
     streams = b.noise.streams()
     blocks = blocks_of(n_runs, n_threads)
-    pool = ThreadPoolExecutor(n_threads) if n_threads > 1 else None
-    try:
-        with np.errstate(all="ignore"):
-            for k0, n, band_buffer, first, end in b.chunks(n_steps):
-                args = (k0, n, b.world, b.plant, b.params, b.runs, b.lines, b.controller_state, streams, b.xs,
-                        b.sums, b.accumulators, b.series, b.slot, band_buffer, first)
-                if loop is None:
-                    loop = compiled_run_chunk(law_module, args + (0, n_runs), compiling)
+    slots = BAND_SLOTS if n_threads > 1 else 1
+    plan = b.plan(n_steps)
+    views = b.buffers(slots)
+    args, bands = [], []
+    for i, (k0, n, first, end) in enumerate(plan):
+        xs, band_buffer = views(i, n, first, end)
+        args.append((k0, n, b.world, b.plant, b.params, b.runs, b.lines, b.controller_state, streams, xs, b.sums,
+                     b.accumulators, b.series, b.slot, band_buffer, first))
+        bands.append((band_buffer, first, _split(end - first, min(n_threads, end - first)) if b.bands else []))
+    if not plan:
+        return
+    # one compiled copy per complete call signature (kernels.py), chosen before the first chunk
+    loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
 
-                def advance(block):  # this block's sensor normals, then its steps (each worker thread its own block)
-                    b.draw(n, block)
-                    loop(*args, *block)
+    def step(i: int, block: int) -> None:  # this block's sensor normals of chunk i, then its steps
+        b.draw(plan[i][1], args[i][9], blocks[block])
+        loop(*args[i], *blocks[block])
 
-                _each(pool, advance, blocks)
-                if b.bands is not None:  # the threads reduce disjoint ranges of grid points (same numbers)
-                    _each(pool, lambda points: b.bands.add_chunk(band_buffer, first, points),
-                          _split(end - first, n_threads))
-                if k0 == 0:
-                    check_single_signature(loop)
-                if progress is not None:
-                    progress(k0 + n, n_steps)
-    finally:
-        if pool is not None:
-            pool.shutdown()
+    def reduce(i: int, part: int) -> None:  # the bands of a range of chunk i's grid points, over every run
+        band_buffer, first, parts = bands[i]
+        b.bands.add_chunk(band_buffer, first, parts[part])
+
+    def done(i: int) -> None:
+        if i == 0:
+            check_single_signature(loop)
+        if progress is not None:
+            progress(plan[i][0] + plan[i][1], n_steps)
+
+    with np.errstate(all="ignore"):
+        run_chunks(len(plan), len(blocks), step, [len(parts) for _, _, parts in bands], reduce, n_threads,
+                   slots=slots, after_all=[i > 0 and n != b.chunk for i, (_, n, _, _) in enumerate(plan)], done=done)
 
 
 #: steps between progress reports of an external plant (its steps are slow: a report every chunk would be rare)
@@ -390,11 +408,11 @@ def _run_external(b: _Batch, law_module: str, plant: ExternalPlant, seeds: list[
     control = account = None
     try:
         with np.errstate(all="ignore"):
-            for k0, n, band_buffer, first, end in b.chunks(n_steps):
-                b.draw(n, (0, n_runs))
+            for k0, n, xs, band_buffer, first, end in b.chunks(n_steps):
+                b.draw(n, xs, (0, n_runs))
                 for j in range(n):
                     k = k0 + j
-                    control_args = (k, j, b.world, b.plant, b.params, runs, b.lines, b.controller_state, streams, b.xs,
+                    control_args = (k, j, b.world, b.plant, b.params, runs, b.lines, b.controller_state, streams, xs,
                                     step_out)
                     if control is None:
                         control, account = compiled_external_step(law_module, control_args,
@@ -490,14 +508,16 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     series = np.zeros((len(keep_idx), n_steps if keep_idx else 1, len(channels)))
     slot = np.full(n_runs, -1, dtype=np.int64)
     slot[keep_idx] = np.arange(len(keep_idx))
-    bytes_per_run_step = ((8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
+    n_threads = min(thread_count(threads) if jit_enabled() else 1, n_runs) if sim.plant is None else 1
+    band_slots = BAND_SLOTS if n_threads > 1 else 1
+    bytes_per_run_step = ((band_slots * 8 * len(BAND_CHANNELS) // world.band_stride if bands else 0)
                           + (8 * len(NOISE_CHANNELS) if sensor_noise is not None else 0))
     chunk = chunk_steps(bytes_per_run_step, n_runs)
     plant = sim.robot.plant()
     batch = _Batch(world, plant, params, runs, delay_lines(n_runs, world.actuator.delay_steps), controller_state,
                    acc.sums, accumulators, series, slot, noise, sensor_noise, xs, band_acc, chunk)
     if sim.plant is None:
-        _run_compiled(batch, controller.laws.__name__, n_steps, threads, progress, compiling)
+        _run_compiled(batch, controller.laws.__name__, n_steps, n_threads, progress, compiling)
     else:
         _run_external(batch, controller.laws.__name__, sim.plant(sim, threads), seeds, n_steps, progress,
                       compiling)
