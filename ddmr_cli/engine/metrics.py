@@ -247,7 +247,7 @@ class MetricAccumulator:
         # a sum per run and segment; a wheel's pair (``_R``, ``_L``) wheel first, (2, runs, segments), each wheel's
         # values contiguous (numpy's arithmetic on the strided pair broadcast against the count: 10x slower)
         S = {name: sums[:, :, i] for i, name in enumerate(SUMS) if not name.endswith(("_R", "_L"))}
-        S.update({name[:-2]: np.ascontiguousarray(np.moveaxis(sums[:, :, i:i + 2], -1, 0))
+        S.update({name[:-2]: np.stack([sums[:, :, i], sums[:, :, SUMS.index(name[:-2] + "_L")]])
                   for i, name in enumerate(SUMS) if name.endswith("_R")})
         dt = self.dt
         with np.errstate(invalid="ignore", divide="ignore"):

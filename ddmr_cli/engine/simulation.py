@@ -304,6 +304,7 @@ class _Batch:
     xs: np.ndarray
     bands: BandAccumulator | None
     chunk: int
+    band_slots: int  # band buffers taking turns (BAND_SLOTS with threads, else 1): the chunk budget counted each
 
     def plan(self, n_steps: int) -> list[tuple[int, int, int, int]]:
         """The chunks of a run of ``n_steps`` steps, ``(k0, n, first, end)`` each: the first step, the size (every
@@ -316,15 +317,16 @@ class _Batch:
             k0 += n
         return chunks
 
-    def buffers(self, slots: int = 1) -> Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]]:
-        """The chunks' per-step buffers, allocated once for the largest chunk (chunks of the same size do not
-        allocate and free megabytes each: the allocator keeps what it was given back, 10,000 seeds peaked 10 MiB
-        higher), the band rows in ``slots`` that take turns. Returns ``views(i, n, first, end)``: chunk ``i``'s
-        sensor normals (:meth:`draw` fills them; :attr:`xs`, zeros never read, when the sensor is not noisy) and
-        band buffer, views of the front of those allocations (a shorter last chunk's sensor view overlaps the
-        chunk before's). The runs draw their disturbance normals as they step: no buffer."""
+    def buffers(self) -> Callable[[int, int, int, int], tuple[np.ndarray, np.ndarray]]:
+        """The chunks' per-step buffers, allocated once for the largest chunk (chunks of the same size do not allocate
+        and free megabytes each: the allocator keeps what it was given back, 10,000 seeds peaked 10 MiB higher), the
+        band rows in :attr:`band_slots` buffers that take turns. Returns ``views(i, n, first, end)``: chunk ``i``'s
+        sensor normals (:meth:`draw` fills them; :attr:`xs`, zeros never read, when the sensor is not noisy) and band
+        buffer, views of the front of those allocations (a shorter last chunk's sensor view overlaps the chunk
+        before's). The runs draw their disturbance normals as they step: no buffer."""
         n_runs, channels = len(self.runs), len(BAND_CHANNELS)
         widest = self.bands.most_points(self.chunk) if self.bands is not None else 0
+        slots = self.band_slots
         band_memory = [np.empty(n_runs * widest * channels) for _ in range(slots)]
         sensor_memory = np.empty(n_runs * self.chunk * len(NOISE_CHANNELS)) if self.sensor_noise is not None else None
 
@@ -337,7 +339,7 @@ class _Batch:
         return views
 
     def chunks(self, n_steps: int):
-        """The chunks of :meth:`plan` one after the other with their buffers (:meth:`buffers`, one band slot):
+        """The chunks of :meth:`plan` one after the other with their buffers (:meth:`buffers`):
         ``(k0, n, xs, band_buffer, first, end)`` each."""
         views = self.buffers()
         for i, (k0, n, first, end) in enumerate(self.plan(n_steps)):
@@ -356,14 +358,14 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
     n_runs = len(b.runs)
     streams = b.noise.streams()
     blocks = blocks_of(n_runs, n_threads)
-    slots = BAND_SLOTS if n_threads > 1 else 1
     plan = b.plan(n_steps)
-    views = b.buffers(slots)
-    args, bands = [], []
+    views = b.buffers()
+    args, sensor, bands = [], [], []
     for i, (k0, n, first, end) in enumerate(plan):
         xs, band_buffer = views(i, n, first, end)
         args.append((k0, n, b.world, b.plant, b.params, b.runs, b.lines, b.controller_state, streams, xs, b.sums,
                      b.accumulators, b.series, b.slot, band_buffer, first))
+        sensor.append(xs)
         bands.append((band_buffer, first, _split(end - first, min(n_threads, end - first)) if b.bands else []))
     if not plan:
         return
@@ -371,7 +373,7 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
     loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
 
     def step(i: int, block: int) -> None:  # this block's sensor normals of chunk i, then its steps
-        b.draw(plan[i][1], args[i][9], blocks[block])
+        b.draw(plan[i][1], sensor[i], blocks[block])
         loop(*args[i], *blocks[block])
 
     def reduce(i: int, part: int) -> None:  # the bands of a range of chunk i's grid points, over every run
@@ -385,8 +387,9 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
             progress(plan[i][0] + plan[i][1], n_steps)
 
     with np.errstate(all="ignore"):
+        shorter = [i > 0 and n != b.chunk for i, (_, n, _, _) in enumerate(plan)]  # reuses the sensor's buffer
         run_chunks(len(plan), len(blocks), step, [len(parts) for _, _, parts in bands], reduce, n_threads,
-                   slots=slots, after_all=[i > 0 and n != b.chunk for i, (_, n, _, _) in enumerate(plan)], done=done)
+                   slots=b.band_slots, after_all=shorter, done=done)
 
 
 #: steps between progress reports of an external plant (its steps are slow: a report every chunk would be rare)
@@ -515,7 +518,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     chunk = chunk_steps(bytes_per_run_step, n_runs)
     plant = sim.robot.plant()
     batch = _Batch(world, plant, params, runs, delay_lines(n_runs, world.actuator.delay_steps), controller_state,
-                   acc.sums, accumulators, series, slot, noise, sensor_noise, xs, band_acc, chunk)
+                   acc.sums, accumulators, series, slot, noise, sensor_noise, xs, band_acc, chunk, band_slots)
     if sim.plant is None:
         _run_compiled(batch, controller.laws.__name__, n_steps, n_threads, progress, compiling)
     else:
