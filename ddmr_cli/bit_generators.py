@@ -1,36 +1,36 @@
-"""numpy's bit generators for many runs at once: seeded together, and reached from compiled code by address, so one
-compiled call draws for many runs.
+"""numpy's ``default_rng`` streams for many runs at once: each run's ``PCG64`` held as four words of one array,
+seeded for every run at once and stepped by compiled code, so one compiled call draws for many runs and the step
+loop draws its runs' normals as it steps.
 
-**Seeding** (:func:`generators`). ``numpy.random.default_rng(seed)`` hashes the seed with ``SeedSequence`` in
-Python (about 25 us a seed, the GIL held: 25 ms of a 1,000-run batch's set-up that no thread can share).
-:func:`seed_words` runs the same hash (numpy's ``SeedSequence.mix_entropy`` and ``generate_state``, unsigned 32-bit
-arithmetic) for every seed at once with numpy's array operations, and each ``PCG64`` is seeded from its words
-through numpy's public ``ISeedSequence`` interface: the same state as ``default_rng(seed)`` (tested seed by seed,
-and checked in each process before it is used) in about a fifth of the time.
+**Seeding** (:func:`states`). ``numpy.random.default_rng(seed)`` hashes the seed with ``SeedSequence`` in Python
+(about 25 us a seed, the GIL held) and builds a ``Generator`` object around a ``PCG64`` (2 us more a run, and a few
+hundred bytes). :func:`seed_words` runs the same hash (numpy's ``SeedSequence.mix_entropy`` and ``generate_state``,
+unsigned 32-bit arithmetic) for every seed at once with numpy's array operations, and a compiled loop seeds each
+run's ``PCG64`` from its words as numpy's ``pcg64_set_seed`` does, with no ``Generator`` object: 1,000 runs seeded
+(and their first normals drawn) in 0.3 ms where the objects took 2.3 ms, all of it serial before the threads start;
+at 10,000 runs 0.3 MB held where the objects held 7.9 MB.
 
-**Drawing.**
+**The generator** (numpy's ``numpy/random/src/pcg64``: ``PCG64``, the bit generator of ``default_rng``). Its state
+is a 128-bit LCG, ``state <- state * M + inc`` (``M`` numpy's ``PCG_DEFAULT_MULTIPLIER_128``, ``inc`` odd); each
+64-bit output is the XSL-RR of the new state: its high and low halves xor-ed, rotated right by its top 6 bits. A
+run's state is a row ``(state_hi, state_lo, inc_hi, inc_lo)`` of a ``uint64`` array (:func:`states`); compiled code
+steps it with LLVM's own 128-bit integers (:func:`_lcg_step`, one multiply-add).
 
-numba can take a ``numpy.random.Generator`` as an argument and draws numpy's own streams from it, but it unboxes
-the generator at every call (its bit generator's ``ctypes`` interface, four ``ctypes.cast`` calls: 6.5-15 us
-with the GIL held, against 0.6 us for a call here). A block of runs drawn one run per call paid that for every run
-of every chunk, and two worker threads queued on the GIL for it. Here each generator's ``bitgen_t`` (numpy's C
-interface to a bit generator: its state and its ``next_uint64``, ``next_uint32``, ``next_double`` functions, in that
-order; numpy's ``numpy/random/bitgen.h``, the documented C API for extending ``numpy.random``) is found once, from
-the generator's ``capsule``, and compiled code builds numba's own bit-generator value from that address. numba's own
-ziggurat (:func:`numba.np.random.distributions.random_standard_normal`, what ``Generator.standard_normal``
-runs compiled) then draws the same numbers, and leaves the same state, as numpy's ``standard_normal``. The step
-loop draws each run's normals one at a time as it steps (:func:`stream_of`, :func:`next_normal`: one definition,
-compiled through these addresses, or as plain Python on the generators themselves); :func:`standard_normals_of`
-draws a block of runs' rows at once (a run's first normals, the sensor's).
+**Drawing.** :func:`next_normal` is numpy's ``Generator.standard_normal()``: as plain Python, the generator's own
+method; compiled, numpy's ziggurat (``random_standard_normal``, the transcription numba ships for its ``Generator``
+support, with its tables) on the run's row. The same number, and the generator's state after it is numpy's (tested
+over 50,000 normals one at a time and 600,000 by block, the ziggurat's tail and wedge included). The step loop draws
+each run's normals one at a time as it steps (:func:`next_normal`); :func:`standard_normals_of`
+draws a block of runs' rows at once (a run's first normals, the sensor's). :func:`generator_at` gives back a numpy
+``Generator`` at a row's state, to go on drawing from it in numpy.
 
-Both numba names used here (the bit generator's data model and the ziggurat) are numba's internals: where a
-numba lacks them :data:`AVAILABLE` is False, and the compiled step loop cannot draw: :func:`require_compiled_draws`
-says so before a run (``NUMBA_DISABLE_JIT=1`` runs the same numbers as Python). The addresses are valid while their generators live: the caller keeps the generators.
+The ziggurat's tables are numba's (``numba.np.random._constants``, numpy's ``ziggurat_constants.h``): where a numba
+lacks them :data:`AVAILABLE` is False, and the compiled step loop cannot draw: :func:`require_compiled_draws` says
+so before a run (``NUMBA_DISABLE_JIT=1`` runs the same numbers as Python, on numpy's generators).
 """
 
 from __future__ import annotations
 
-import ctypes
 import functools
 from typing import Sequence
 
@@ -38,97 +38,159 @@ import numpy as np
 
 from ddmr_cli.compiled import AVAILABLE as _NUMBA, cached_law, jit_enabled
 
-#: fields of numpy's ``bitgen_t`` read here, in their order: the state, then the three draw functions
-_BITGEN_FIELDS = ("state", "next_uint64", "next_uint32", "next_double")
+#: numpy's ``PCG_DEFAULT_MULTIPLIER_128`` (``numpy/random/src/pcg64/pcg64.h``), the LCG's multiplier
+MULTIPLIER = 0x2360ED051FC65DA44385DF649FCCF645
+#: a run's row of :func:`states`: the 128-bit state and increment, high word first
+STATE_WORDS = ("state_hi", "state_lo", "inc_hi", "inc_lo")
 
 
 def _numba_parts():
-    """numba's modules this draw builds on, or None where numba is missing or lacks them."""
+    """numba's parts this draw builds on (``intrinsic`` and the ziggurat's tables), or None where numba is missing
+    or lacks them."""
     if not _NUMBA:
         return None
     try:
-        from numba.core import cgutils, types
-        from numba.core.datamodel import default_manager
+        from llvmlite import ir
+        from numba.core import types
         from numba.core.extending import intrinsic
-        from numba.np.random.distributions import random_standard_normal
-        import numba.np.random.generator_core  # noqa: F401  (registers the bit generator's data model)
+        from numba.np.random._constants import fi_double, ki_double, wi_double, ziggurat_nor_inv_r, ziggurat_nor_r
     except ImportError:
         return None
-    fields = set(default_manager.lookup(types.NumPyRandomBitGeneratorType("bit_generator"))._fields)
-    if not {"parent", "state_address", "state", "bit_generator"} | {f"fnptr_{f}" for f in _BITGEN_FIELDS[1:]} <= fields:
-        return None
-    return cgutils, types, intrinsic, random_standard_normal
+    return ir, types, intrinsic, (wi_double, ki_double, fi_double, ziggurat_nor_r, ziggurat_nor_inv_r)
 
 
 _parts = _numba_parts()
 
-#: True when :func:`standard_normals_of` is compiled (numba installed, with the parts it builds on)
+#: True when the draws are compiled (numba installed, with the parts they build on)
 AVAILABLE = _parts is not None
 
 if AVAILABLE:  # defined at module level, not in a closure: numba caches a closure's code under a new key each process
-    _cgutils, _types, _intrinsic, random_standard_normal = _parts
+    _ir, _types, _intrinsic, _tables = _parts
+    _WI, _KI, _FI, _ZIGGURAT_R, _ZIGGURAT_INV_R = _tables
+    _SIGN = np.array([1.0, -1.0])  # x * -1.0 is -x, to the bit (a sign bit of 1 negates)
+    from numba import uint64 as _u64
+    from numba.extending import overload
 
     @_intrinsic
-    def bit_generator_at(typingctx, address):
-        """numba's bit-generator value for the ``bitgen_t`` at ``address`` (a uint64)."""
-        bitgen_type = _types.NumPyRandomBitGeneratorType("bit_generator")
+    def _lcg_step(typingctx, state_hi, state_lo, inc_hi, inc_lo):
+        """PCG64's LCG step in 128-bit integers: ``(state * MULTIPLIER + inc)`` as its (high, low) words."""
+        words = _types.UniTuple(_types.uint64, 2)
 
         def codegen(context, builder, signature, args):
-            word = context.get_value_type(_types.uintp)
-            table = builder.inttoptr(args[0], word.as_pointer())
-            loaded = [builder.load(builder.gep(table, [context.get_constant(_types.intp, i)]))
-                      for i in range(len(_BITGEN_FIELDS))]
-            bitgen = _cgutils.create_struct_proxy(bitgen_type)(context, builder)
-            bitgen.parent = _cgutils.get_null_value(bitgen.parent.type)
-            bitgen.state_address = bitgen.state = loaded[0]
-            bitgen.fnptr_next_uint64, bitgen.fnptr_next_uint32, bitgen.fnptr_next_double = loaded[1:]
-            bitgen.bit_generator = args[0]
-            return bitgen._getvalue()
+            i128, i64 = _ir.IntType(128), _ir.IntType(64)
 
-        return bitgen_type(_types.uint64), codegen
+            def joined(high, low):
+                return builder.or_(builder.shl(builder.zext(high, i128), _ir.Constant(i128, 64)),
+                                   builder.zext(low, i128))
+
+            new = builder.add(builder.mul(joined(args[0], args[1]), _ir.Constant(i128, MULTIPLIER)),
+                              joined(args[2], args[3]))
+            high = builder.trunc(builder.lshr(new, _ir.Constant(i128, 64)), i64)
+            return context.make_tuple(builder, words, (high, builder.trunc(new, i64)))
+
+        return words(_types.uint64, _types.uint64, _types.uint64, _types.uint64), codegen
+
+    def _next_uint64(states, r):
+        """Run ``r``'s next PCG64 output (numpy's ``pcg64_next64``): the LCG stepped, then XSL-RR of the new state."""
+        high, low = _lcg_step(states[r, 0], states[r, 1], states[r, 2], states[r, 3])
+        states[r, 0], states[r, 1] = high, low
+        rotation = high >> _u64(58)
+        folded = high ^ low
+        return (folded >> rotation) | (folded << ((_u64(64) - rotation) & _u64(63)))
+
+    def _next_double(states, r):
+        """numpy's ``pcg64_next_double``: the top 53 bits of run ``r``'s next output, in [0, 1)."""
+        return (_next_uint64(states, r) >> _u64(11)) * (1.0 / 9007199254740992.0)
+
+    def _standard_normal(states, r):
+        """numpy's ``random_standard_normal`` (``distributions.c``, its ziggurat) on run ``r``'s row, as numba
+        transcribes it for its ``Generator`` support (its ``r`` is ``bits`` here): the first try, which returns
+        about 99 % of the time, here; the rest in :func:`_ziggurat_rest`."""
+        bits = _next_uint64(states, r)
+        idx = bits & 0xff
+        bits >>= 8
+        sign = bits & 0x1
+        rabs = (bits >> 1) & 0x000fffffffffffff
+        x = rabs * _WI[idx] * _SIGN[sign]
+        if rabs >= _KI[idx]:
+            x = _ziggurat_rest(states, r, idx, rabs, x)
+        return x
+
+    def _ziggurat_rest(states, r, idx, rabs, x):
+        """The ziggurat past a first try that fell outside its rectangle: the tail (``idx == 0``) or the wedge's
+        test, and the tries after, line for line as numba has them."""
+        while 1:
+            if idx == 0:
+                while 1:
+                    xx = -_ZIGGURAT_INV_R * np.log1p(-_next_double(states, r))
+                    yy = -np.log1p(-_next_double(states, r))
+                    if yy + yy > xx * xx:
+                        if (rabs >> 8) & 0x1:
+                            return -(_ZIGGURAT_R + xx)
+                        return _ZIGGURAT_R + xx
+            else:
+                if (_FI[idx - 1] - _FI[idx]) * _next_double(states, r) + _FI[idx] < np.exp(-0.5 * x * x):
+                    return x
+            bits = _next_uint64(states, r)
+            idx = bits & 0xff
+            bits >>= 8
+            sign = bits & 0x1
+            rabs = (bits >> 1) & 0x000fffffffffffff
+            x = rabs * _WI[idx]
+            if sign & 0x1:
+                x = -x
+            if rabs < _KI[idx]:
+                return x
+
+    from numba import njit as _njit
+
+    # inlined into numba's IR: the words' steps and the ziggurat's first try; the rest (a loop with returns inside,
+    # rare) is called, as numba's whole ziggurat is
+    _next_uint64 = _njit(inline="always")(_next_uint64)
+    _next_double = _njit(inline="always")(_next_double)
+    _ziggurat_rest = _njit(_ziggurat_rest)
+    _standard_normal = _njit(inline="always")(_standard_normal)
 
     @cached_law
-    def standard_normals_of(addresses, out, first, end):
-        """Fill ``out[r]`` (C-ordered, one row of normals after another) with the next standard normals of the bit
-        generator at ``addresses[r]``, for runs ``first .. end - 1``: numpy's ``standard_normal(out=out[r])`` of
-        each run's generator, the same numbers and the same state after them."""
+    def standard_normals_of(states, out, first, end):
+        """Fill ``out[r]`` (C-ordered, one row of normals after another) with the next standard normals of run
+        ``r``'s generator (``states[r]``, :func:`states`), for runs ``first .. end - 1``: numpy's
+        ``standard_normal(out=out[r])`` of each run's generator, the same numbers and the same state after them."""
         for r in range(first, end):
-            bitgen = bit_generator_at(addresses[r])
-            row = out[r]
-            for i in range(row.shape[0]):
-                for j in range(row.shape[1]):
-                    row[i, j] = random_standard_normal(bitgen)
+            for i in range(out.shape[1]):
+                for j in range(out.shape[2]):
+                    out[r, i, j] = _standard_normal(states, r)
+
+    @cached_law
+    def _seeded(words, out):
+        """numpy's ``pcg64_set_seed`` of each run's four seed words (``SeedSequence.generate_state(4, uint64)``:
+        the state's, then the increment's) into ``out[r]``: ``inc = 2 w + 1``, the state stepped from 0, the seed
+        added, stepped again."""
+        for r in range(words.shape[0]):
+            inc_hi = (words[r, 2] << _u64(1)) | (words[r, 3] >> _u64(63))
+            inc_lo = (words[r, 3] << _u64(1)) | _u64(1)
+            high, low = _lcg_step(_u64(0), _u64(0), inc_hi, inc_lo)
+            added = low + words[r, 1]
+            high = high + words[r, 0] + (_u64(1) if added < low else _u64(0))
+            high, low = _lcg_step(high, added, inc_hi, inc_lo)
+            out[r, 0], out[r, 1], out[r, 2], out[r, 3] = high, low, inc_hi, inc_lo
 else:
     standard_normals_of = None
 
 
-def stream_of(streams, r: int):
-    """Run ``r``'s noise stream in the step loop: ``streams[r]``, its generator (``streams``: a list of
-    ``numpy.random.Generator``) where the loop runs as Python; compiled, numba's bit-generator value of the
-    ``bitgen_t`` at the address ``streams[r]`` (``streams``: :func:`addresses`)."""
-    return streams[r]
-
-
-def next_normal(stream) -> float:
-    """The stream's next standard normal: numpy's ``Generator.standard_normal()``; compiled, numba's ziggurat on the
-    same bit generator (what ``standard_normal`` runs compiled), the same number, the same state after it. A run's
-    normals drawn one at a time in the loop are the numbers ``standard_normal(size)`` gives at once."""
-    return stream.standard_normal()
+def next_normal(streams, r: int) -> float:
+    """Run ``r``'s next standard normal: numpy's ``Generator.standard_normal()`` of ``streams[r]`` (``streams``: a
+    list of generators) as plain Python; compiled, numpy's ziggurat on row ``r`` of ``streams`` (:func:`states`; module
+    docstring): the same number, the same state after it. A run's normals drawn one at a time in the loop are the
+    numbers ``standard_normal(size)`` gives at once."""
+    return streams[r].standard_normal()
 
 
 if AVAILABLE:
-    from numba.extending import overload
-
-    @overload(stream_of, inline="always")
-    def _stream_of_compiled(streams, r):
-        def impl(streams, r):
-            return bit_generator_at(streams[r])
-        return impl
-
     @overload(next_normal, inline="always")
-    def _next_normal_compiled(stream):
-        def impl(stream):
-            return random_standard_normal(stream)
+    def _next_normal_compiled(streams, r):
+        def impl(streams, r):
+            return _standard_normal(streams, r)
         return impl
 
 
@@ -196,7 +258,6 @@ class _SeedWords(np.random.bit_generator.ISeedSequence):
         return self.words
 
 
-
 @functools.lru_cache(maxsize=1)
 def _hash_agrees() -> bool:
     """True when :func:`seed_words` gives this numpy's ``SeedSequence`` words (checked once per process, on seeds
@@ -207,34 +268,57 @@ def _hash_agrees() -> bool:
                for key in ((), (1,), (3, 7)) for i, s in enumerate(seeds))
 
 
+def _words(seeds: Sequence[int], spawn_key: tuple[int, ...]) -> np.ndarray:
+    """``SeedSequence(seed, spawn_key=spawn_key).generate_state(4, uint64)`` of every seed, shape ``(n, 4)``: by
+    :func:`seed_words` where it applies, else by numpy's ``SeedSequence`` seed by seed."""
+    words = seed_words(seeds, spawn_key) if _hash_agrees() else None
+    if words is None:
+        words = np.array([np.random.SeedSequence(int(s), spawn_key=spawn_key).generate_state(_POOL_SIZE, np.uint64)
+                          for s in seeds], dtype=np.uint64).reshape(len(seeds), _POOL_SIZE)
+    return words
+
+
 def generators(seeds: Sequence[int], spawn_key: tuple[int, ...] = ()) -> list[np.random.Generator]:
     """``numpy.random.default_rng(SeedSequence(seed, spawn_key=spawn_key))`` of every seed: the same generators
     (the same state, the same streams), seeded from :func:`seed_words` where it applies."""
-    words = seed_words(seeds, spawn_key) if _hash_agrees() else None
-    if words is None:
-        return [np.random.default_rng(np.random.SeedSequence(int(s), spawn_key=spawn_key)) for s in seeds]
-    return [np.random.Generator(np.random.PCG64(_SeedWords(w))) for w in words]
+    return [np.random.Generator(np.random.PCG64(_SeedWords(w))) for w in _words(seeds, spawn_key)]
 
 
-def addresses(generators: Sequence[np.random.Generator]) -> np.ndarray:
-    """The address of each generator's ``bitgen_t`` (uint64), read from its bit generator's capsule (about 1 us
-    each, with no ``ctypes`` interface built). Valid while the generators live."""
-    pointer = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.py_object, ctypes.c_char_p)(
-        ("PyCapsule_GetPointer", ctypes.pythonapi))
-    return np.array([pointer(g.bit_generator.capsule, b"BitGenerator") for g in generators], dtype=np.uint64)
+def states(seeds: Sequence[int], spawn_key: tuple[int, ...] = ()) -> np.ndarray:
+    """The ``PCG64`` of ``default_rng(SeedSequence(seed, spawn_key=spawn_key))`` of every seed, as rows
+    ``(state_hi, state_lo, inc_hi, inc_lo)`` of a ``uint64`` array (:data:`STATE_WORDS`): the generators
+    :func:`generators` gives, seeded at once by one compiled call, without their objects (:data:`AVAILABLE` must
+    hold)."""
+    out = np.empty((len(seeds), len(STATE_WORDS)), dtype=np.uint64)
+    _seeded(np.ascontiguousarray(_words(seeds, spawn_key), dtype=np.uint64), out)
+    return out
+
+
+def state_of(row: np.ndarray) -> dict:
+    """A row of :func:`states` as numpy's ``PCG64.state`` spells it (``bit_generator.state``)."""
+    high, low, inc_high, inc_low = (int(v) for v in row)
+    return {"bit_generator": "PCG64", "state": {"state": (high << 64) | low, "inc": (inc_high << 64) | inc_low},
+            "has_uint32": 0, "uinteger": 0}
+
+
+def generator_at(row: np.ndarray) -> np.random.Generator:
+    """A numpy ``Generator`` at a row's state (:func:`state_of`): it draws on where the row's draws stopped."""
+    bit_generator = np.random.PCG64()
+    bit_generator.state = state_of(row)
+    return np.random.Generator(bit_generator)
 
 
 def require_compiled_draws() -> None:
     """Raise :class:`~ddmr_cli.errors.EngineUnavailable` where the step loop runs compiled but cannot draw compiled
-    (a numba without the parts this module builds on): it draws its runs' normals as it steps, through them."""
+    (a numba without the parts this module builds on): it draws its runs' normals as it steps, with them."""
     if jit_enabled() and not AVAILABLE:
         import numba
 
         from ddmr_cli.errors import EngineUnavailable
 
-        raise EngineUnavailable(f"numba {numba.__version__} lacks the bit-generator parts ddmr's compiled step loop "
-                                f"draws its noise through (ddmr_cli/bit_generators.py); install a numba that has them "
-                                f"(0.68 has them) or set NUMBA_DISABLE_JIT=1 (the same numbers, slowly)")
+        raise EngineUnavailable(f"numba {numba.__version__} lacks the parts ddmr's compiled step loop draws its noise "
+                                f"with (ddmr_cli/bit_generators.py: numba's ziggurat tables); install a numba that has "
+                                f"them (0.68 has them) or set NUMBA_DISABLE_JIT=1 (the same numbers, slowly)")
 
 
 def drawn_compiled() -> bool:
@@ -242,5 +326,5 @@ def drawn_compiled() -> bool:
     return AVAILABLE and jit_enabled()
 
 
-__all__ = ["AVAILABLE", "addresses", "drawn_compiled", "generators", "next_normal", "require_compiled_draws",
-           "seed_words", "standard_normals_of", "stream_of"]
+__all__ = ["AVAILABLE", "MULTIPLIER", "STATE_WORDS", "drawn_compiled", "generator_at", "generators", "next_normal",
+           "require_compiled_draws", "seed_words", "standard_normals_of", "state_of", "states"]

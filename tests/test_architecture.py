@@ -32,7 +32,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("ddmr_cli.plant",),                         # the plants the engine steps
     ("ddmr_cli.control",),                       # the control laws
     ("ddmr_cli.model",),                         # robot, terrain, scenario, sensor, actuator, kinematics
-    ("ddmr_cli.bit_generators",),                # numpy's bit generators drawn from compiled code
+    ("ddmr_cli.bit_generators",),                # numpy's PCG64 streams drawn by compiled code
     ("ddmr_cli.checks", "ddmr_cli.compiled", "ddmr_cli.workers", "ddmr_cli.compat", "ddmr_cli.version",
      "ddmr_cli.data", "ddmr_cli.progress", "ddmr_cli.keyed", "ddmr_cli.display", "ddmr_cli.exports"),
     ("ddmr_cli.errors",),

@@ -279,54 +279,77 @@ def test_noise_drawn_by_blocks_of_runs_is_the_noise_drawn_at_once():
 
 
 def test_the_step_loops_draws_one_at_a_time_are_numpys_stream():
-    """The step loop draws each run's normals one at a time as it steps (``stream_of``, ``next_normal``), compiled
-    (numba's ziggurat on the bit generator at the run's address) and as plain Python (the generator's own
-    ``standard_normal()``): the numbers numpy's ``standard_normal(size)`` gives the run's generator at once, and the
-    generator's state after them."""
+    """The step loop draws each run's normals one at a time as it steps (``next_normal(streams, r)``), compiled
+    (numpy's ziggurat on the run's PCG64 row) and as plain Python (the generator's own ``standard_normal()``): the
+    numbers numpy's ``standard_normal(size)`` gives the run's generator at once, and the generator's state after
+    them."""
     from ddmr_cli import bit_generators
     from ddmr_cli.compiled import law
 
     def draw_each(streams, out):
         for r in range(out.shape[0]):
-            stream = bit_generators.stream_of(streams, r)
             for i in range(out.shape[1]):
-                out[r, i] = bit_generators.next_normal(stream)
+                out[r, i] = bit_generators.next_normal(streams, r)
 
     seeds = (3, 11, 2**32 - 1)
-    for drawn_by, streams_of in ((law(draw_each), bit_generators.addresses), (draw_each, list)):
-        ours = [np.random.default_rng(seed) for seed in seeds]
+    compiled, plain = bit_generators.states(seeds), bit_generators.generators(seeds)
+    for drawn_by, streams in ((law(draw_each), compiled), (draw_each, plain)):
         drawn = np.empty((len(seeds), 50_000))
-        drawn_by(streams_of(ours), drawn)
+        drawn_by(streams, drawn)
         for run, seed in enumerate(seeds):
             numpys = np.random.default_rng(seed)
             assert np.array_equal(drawn[run], numpys.standard_normal(50_000)), (drawn_by, seed)
-            assert ours[run].bit_generator.state == numpys.bit_generator.state
+    for run, seed in enumerate(seeds):  # both left where numpy's own draw leaves the generator
+        numpys = np.random.default_rng(seed)
+        numpys.standard_normal(50_000)
+        assert bit_generators.state_of(compiled[run]) == numpys.bit_generator.state == plain[run].bit_generator.state
 
 
 def test_the_compiled_draw_is_numpys_stream():
-    """``standard_normals_of`` (numba's ziggurat on each generator's bit generator, found by address; what the
-    engine draws with) gives numpy's own ``standard_normal(out=...)`` stream of each seed, 600,000 normals each
-    (the ziggurat's rare tail and wedge branches included), for the runs of the block it is given only, and
-    leaves each generator where numpy's draw leaves it."""
+    """``standard_normals_of`` (numpy's ziggurat on each run's PCG64 row; what the engine draws a block with) gives
+    numpy's own ``standard_normal(out=...)`` stream of each seed, 600,000 normals each (the ziggurat's rare tail and
+    wedge branches included), for the runs of the block it is given only, and leaves each run's generator where
+    numpy's draw leaves it."""
     from ddmr_cli import bit_generators
 
     assert bit_generators.drawn_compiled(), "numba is a dependency: the engine draws compiled"
     seeds = (0, 7, 12345, 99)
-    ours = [np.random.default_rng(seed) for seed in seeds]
+    states = bit_generators.states(seeds)
     drawn = np.zeros((len(seeds), 200_000, 3))
-    bit_generators.standard_normals_of(bit_generators.addresses(ours), drawn, 1, 4)  # the block of runs 1..3
-    assert not drawn[0].any() and ours[0].bit_generator.state == np.random.default_rng(seeds[0]).bit_generator.state
+    bit_generators.standard_normals_of(states, drawn, 1, 4)  # the block of runs 1..3
+    assert not drawn[0].any()
+    assert bit_generators.state_of(states[0]) == np.random.default_rng(seeds[0]).bit_generator.state
     for run in (1, 2, 3):
         numpys = np.random.default_rng(seeds[run])
         expected = numpys.standard_normal((200_000, 3))
-        np.testing.assert_allclose(drawn[run], expected, rtol=1e-15, atol=0)  # the same numbers (to the bit here)
-        assert ours[run].bit_generator.state == numpys.bit_generator.state
+        assert np.array_equal(drawn[run], expected), seeds[run]  # the same numbers, to the bit
+        assert bit_generators.state_of(states[run]) == numpys.bit_generator.state
         assert abs(drawn[run]).max() > 4.0  # the draw reached the ziggurat's tail
+
+
+@pytest.mark.parametrize("spawn_key", [(), (1,), (3, 7)])
+def test_the_runs_generators_are_seeded_as_numpy_seeds_them(spawn_key):
+    """``bit_generators.states`` (numpy's ``pcg64_set_seed`` of the hashed words, one compiled call for every seed)
+    holds each seed's ``default_rng(SeedSequence(seed, spawn_key=...))`` state, seeds beyond one 32-bit word (hashed
+    by SeedSequence itself) too; ``generator_at`` gives back a numpy generator that draws on from it."""
+    from ddmr_cli import bit_generators
+
+    seeds = list(range(0, 3000, 7)) + [2**31, 2**32 - 1, 2**32, 2**40 + 5]
+    for made in (bit_generators.states(seeds, spawn_key), bit_generators.states(seeds[:-2], spawn_key)):
+        assert made.dtype == np.uint64 and made.shape[1] == len(bit_generators.STATE_WORDS)
+        for seed, row in zip(seeds, made):
+            numpys = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=spawn_key))
+            assert bit_generators.state_of(row) == numpys.bit_generator.state, seed
+            assert row[3] & np.uint64(1) == 1  # PCG64's increment is odd
+    row = bit_generators.states([42])[0]
+    drawn_on = bit_generators.generator_at(row).standard_normal(9)
+    assert np.array_equal(drawn_on, np.random.default_rng(42).standard_normal(9))
 
 
 def test_noise_streams_are_numpys_in_any_chunking():
     """A run's stream is numpy's own whatever the chunk sizes and blocks it is drawn in, and numpy's own draw
-    (what runs without numba) continues it where the compiled one stopped."""
+    (``generator_at`` the run's state) continues it where the compiled one stopped."""
+    from ddmr_cli import bit_generators
     from ddmr_cli.model.noise import NoiseStreams
 
     sizes = [7, 512, 1, 1025, 64]
@@ -336,22 +359,23 @@ def test_noise_streams_are_numpys_in_any_chunking():
     streams.next_chunk(9, blocks, (2, 3))
     streams.next_chunk(9, blocks, (0, 2))
     drawn = np.concatenate(drawn + [blocks], axis=1)
-    tail = [g.standard_normal((5, NoiseStreams.channels)) for g in streams.generators]
+    tail = [bit_generators.generator_at(row).standard_normal((5, NoiseStreams.channels)) for row in streams.states]
     for run, seed in enumerate((3, 4, 5)):
         expected = np.random.default_rng(seed).standard_normal((sum(sizes) + 9 + 5, NoiseStreams.channels))
-        np.testing.assert_allclose(np.concatenate([drawn[run], tail[run]]), expected, rtol=1e-15, atol=0)
+        assert np.array_equal(np.concatenate([drawn[run], tail[run]]), expected), seed
 
 
 def test_without_the_compiled_draw_numpy_draws_the_same_numbers(monkeypatch):
-    """Where numba lacks the parts the compiled draw builds on (or numba is off), numpy draws: the same streams."""
+    """Where the draws run as Python (numba off, or lacking the parts the compiled draw builds on), numpy's own
+    generators draw: the same streams."""
     from ddmr_cli import bit_generators
     from ddmr_cli.model.noise import NoiseStreams
 
     compiled = NoiseStreams([11, 12]).next_chunk(300)
     monkeypatch.setattr(bit_generators, "AVAILABLE", False)
     streams = NoiseStreams([11, 12])
-    assert streams._addresses is None
-    np.testing.assert_allclose(streams.next_chunk(300), compiled, rtol=1e-15, atol=0)
+    assert streams.states is None and len(streams.generators) == 2
+    assert np.array_equal(streams.next_chunk(300), compiled)
 
 
 @pytest.mark.parametrize("spawn_key", [(), (1,), (3, 7)])

@@ -222,9 +222,9 @@ def test_a_warm_cache_keeps_controllers_of_one_module_apart(tmp_path):
     assert fresh["smc_ndo"] != fresh["smc_ndo_nno"]
 
 
-def test_a_numba_without_the_bit_generator_parts_is_named_not_run(monkeypatch):
-    """The compiled loop draws its runs' noise through numba's bit-generator parts (ddmr_cli/bit_generators.py): where
-    numba lacks them, simulate says so (EngineUnavailable, naming numba and NUMBA_DISABLE_JIT) before any step."""
+def test_a_numba_without_the_parts_of_the_draw_is_named_not_run(monkeypatch):
+    """The compiled loop draws its runs' noise with numba's parts (ddmr_cli/bit_generators.py: its ziggurat tables):
+    where numba lacks them, simulate says so (EngineUnavailable, naming numba and NUMBA_DISABLE_JIT) before any step."""
     from ddmr_cli import bit_generators
     from ddmr_cli.errors import EngineUnavailable
 

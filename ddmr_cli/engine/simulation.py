@@ -524,7 +524,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     else:
         _run_external(batch, controller.laws.__name__, sim.plant(sim, threads), seeds, n_steps, progress,
                       compiling)
-    # what only the steps needed (the generators, the controllers' states: 11 MB at 10,000 seeds) goes before the
+    # what only the steps needed (the generators, the controllers' states) goes before the
     # metrics are formed, which is when a large batch's memory peaks
     del batch, noise, sensor_noise, controller_state
     diverged = runs["divergence_step"] >= 0

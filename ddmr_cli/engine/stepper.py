@@ -39,14 +39,15 @@ from ddmr_cli.model.kinematics import deviation, inverse, pose_error
 from ddmr_cli.model.dynamics import saturate, wheel_acceleration
 from ddmr_cli.model.scenario import damping_scale
 from ddmr_cli.model.terrain import zone_of
-from ddmr_cli.bit_generators import next_normal, stream_of
+from ddmr_cli.bit_generators import next_normal
 
 @law
 def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, streams, xs, sums, accumulators,
               series, series_slot, bands, band_first, first_run, end_run):
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; run r draws its
-    standard normals from ``stream_of(streams, r)`` as it steps (three a step: :mod:`ddmr_cli.bit_generators`),
-    ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the sensor is noisy).
+    standard normals from its own stream as it steps (three a step: ``next_normal(streams, r)``,
+    :mod:`ddmr_cli.bit_generators`), ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the sensor is
+    noisy).
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
     ``runs``, ``controller_state`` and ``accumulators`` (one record per run) and ``lines`` (each run's actuator
@@ -71,7 +72,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
     x, y, theta, dist = run["x"], run["y"], run["theta"], run["distance"]
     w_R, w_L = run["w"][0], run["w"][1]
     wdp_R, wdp_L = run["w_d_prev"][0], run["w_d_prev"][1]
-    n_R, n_L, n_u = run["noise"][0], run["noise"][1], run["noise"][2]
+    noise = run["noise"]  # the OU processes' state (5), stepped in place
     # what the zero-order hold keeps between control instants
     uc_R, uc_L, us_R, us_L = run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1]
     sat_R, sat_L = run["saturated"][0] != 0, run["saturated"][1] != 0
@@ -82,7 +83,6 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
     to_control, kc = (m - k0 % m) % m, (k0 + m - 1) // m
     stride = world.band_stride
     to_band, band_j = (stride - k0 % stride) % stride, 0  # band_j: the grid point's row in this chunk's buffer
-    stream = stream_of(streams, r)
     for j in range(n_steps):
         k = k0 + j
         x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
@@ -120,9 +120,9 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
         # the motor's voltage: the held command, delayed and lagged (§10)
         u_R, u_L = actuator.apply(act, run, line, k, us_R, us_L)
         # this step's disturbances, held over it (5): the run's next three normals, in the channels' order
-        n_R = ou_step(world.ou_a[0], world.ou_b[0], n_R, next_normal(stream))
-        n_L = ou_step(world.ou_a[1], world.ou_b[1], n_L, next_normal(stream))
-        n_u = ou_step(world.ou_a[2], world.ou_b[2], n_u, next_normal(stream))
+        for c in range(3):  # one call of the draw (numba inlines a draw called three times with scope warnings)
+            noise[c] = ou_step(world.ou_a[c], world.ou_b[c], noise[c], next_normal(streams, r))
+        n_R, n_L, n_u = noise[0], noise[1], noise[2]
         phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)
         rough = world.roughness[zone] * world.roughness_on[phase]
@@ -164,7 +164,6 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
     run["x"], run["y"], run["theta"], run["distance"] = x, y, theta, dist
     run["w"][0], run["w"][1] = w_R, w_L
     run["w_d_prev"][0], run["w_d_prev"][1] = wdp_R, wdp_L
-    run["noise"][0], run["noise"][1], run["noise"][2] = n_R, n_L, n_u
     run["u_command"][0], run["u_command"][1], run["u_sent"][0], run["u_sent"][1] = uc_R, uc_L, us_R, us_L
     run["saturated"][0], run["saturated"][1] = 1 if sat_R else 0, 1 if sat_L else 0
     run["w_d"][0], run["w_d"][1] = wd_R, wd_L
@@ -196,11 +195,10 @@ def external_control(k, j, world, plant, params, runs, lines, controller_state, 
             external_control_instant(world, plant, params, run, line, st, k, xs, r, j, x, y, theta, w_R, w_L)
         u_R, u_L = actuator.apply(world.actuator, run, line, k, run["u_sent"][0], run["u_sent"][1])
         # this step's disturbances (5): the roughness is the ground's, scenario 2's damping scale acts on the motor
-        stream = stream_of(streams, r)
-        n_R = ou_step(world.ou_a[0], world.ou_b[0], run["noise"][0], next_normal(stream))
-        n_L = ou_step(world.ou_a[1], world.ou_b[1], run["noise"][1], next_normal(stream))
-        n_u = ou_step(world.ou_a[2], world.ou_b[2], run["noise"][2], next_normal(stream))
-        run["noise"][0], run["noise"][1], run["noise"][2] = n_R, n_L, n_u
+        noise = run["noise"]
+        for c in range(3):  # one call of the draw, as in run_steps
+            noise[c] = ou_step(world.ou_a[c], world.ou_b[c], noise[c], next_normal(streams, r))
+        n_u = noise[2]
         phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)
         rough = world.roughness[zone] * world.roughness_on[phase]

@@ -49,16 +49,21 @@ class NoiseStreams:
     channels = len(CHANNELS)
 
     def __init__(self, seeds: Sequence[int], spawn_key: tuple[int, ...] = ()) -> None:
-        #: ``default_rng(SeedSequence(seed, spawn_key=spawn_key))`` of each seed, seeded at once
-        self.generators = bit_generators.generators(seeds, spawn_key)
-        #: where compiled code finds each generator's bit generator (:mod:`ddmr_cli.bit_generators`), or None
-        self._addresses = bit_generators.addresses(self.generators) if bit_generators.drawn_compiled() else None
+        self.n_runs = len(seeds)
+        if bit_generators.drawn_compiled():
+            #: each run's ``PCG64`` of ``default_rng(SeedSequence(seed, spawn_key=spawn_key))``, one row a run
+            #: (:func:`ddmr_cli.bit_generators.states`: seeded at once, drawn by compiled code), or None
+            self.states = bit_generators.states(seeds, spawn_key)
+            self.generators = None
+        else:
+            self.states = None
+            #: the same generators as numpy objects, where the draws run as Python (numba missing or off), or None
+            self.generators = bit_generators.generators(seeds, spawn_key)
 
     def streams(self):
-        """Each run's stream as the step loop draws from it (:func:`ddmr_cli.bit_generators.stream_of`): the
-        addresses of the generators' bit generators where the loop is compiled and draws through them, else the
-        generators themselves. Valid while this object lives."""
-        return self._addresses if self._addresses is not None else self.generators
+        """Each run's stream as the step loop draws from it (:func:`ddmr_cli.bit_generators.stream_of`): the rows of
+        :attr:`states` where the loop is compiled, else the generators themselves."""
+        return self.states if self.states is not None else self.generators
 
     def initial_state(self) -> np.ndarray:
         """The OU processes' state before the first step, drawn from N(0, 1): shape ``(n_runs, 3)`` (each run's
@@ -72,14 +77,14 @@ class NoiseStreams:
         ``runs=(first, end)`` draws for those runs only, into their rows of ``out`` (which must then have the
         shape): the engine's worker threads each draw their own block (one compiled call that releases the GIL;
         numpy's own draw where numba is missing), and a run's numbers are the same whichever thread draws them."""
-        shape = (len(self.generators), n_steps, self.channels)
+        shape = (self.n_runs, n_steps, self.channels)
         if out is None or out.shape != shape:
             if runs is not None:
                 raise ValueError(f"out must have shape {shape} to be filled by blocks of runs")
             out = np.empty(shape)
-        first, end = runs if runs is not None else (0, len(self.generators))
-        if self._addresses is not None:  # one compiled call for the block, the GIL released: the same numbers
-            bit_generators.standard_normals_of(self._addresses, out, first, end)
+        first, end = runs if runs is not None else (0, self.n_runs)
+        if self.states is not None:  # one compiled call for the block, the GIL released: the same numbers
+            bit_generators.standard_normals_of(self.states, out, first, end)
         else:
             for i in range(first, end):
                 self.generators[i].standard_normal(out=out[i])
