@@ -64,6 +64,24 @@ def test_every_extreme_float_is_refused_or_runs_to_a_result(controller):
     assert checked == len(keys) * len(EXTREMES)
 
 
+@pytest.mark.parametrize("overrides, key", [
+    (["terrain.zones.very_rough.mu=1.7e308"], "terrain.zones.very_rough.mu"),
+    (["terrain.zones.flat.mu=1e300", "robot.mass=1e10"], "terrain.zones.flat.mu"),
+    (["controller=pid", "controller.kp=1e300"], "simulation.dt"),
+    (["controller=pid", "controller.kd=1e300"], "simulation.dt"),
+])
+def test_an_overflowing_value_is_refused_by_name_without_a_warning(overrides, key):
+    """Found by the sweep above: a rolling-resistance coefficient whose torque overflows was refused as
+    ``terrain='[0]'`` after numpy's overflow warning, and an extreme PD gain warned on its way to the refusal. The
+    refusal is one line: the zone's own key and value, and no RuntimeWarning before it."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        kind, out = _outcome(overrides)
+    assert kind == "refused" and out.key == key, out
+
+
 @pytest.mark.parametrize("width", [5e-324, 1e-300])
 def test_a_width_whose_inverse_square_overflows_is_refused(width):
     """Found by the sweep above: nn.width = 1e-300 passed '> 0' and the compiled basis divided by zero."""

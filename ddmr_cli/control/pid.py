@@ -80,7 +80,7 @@ def _pd_spectral_radius(dt_g_kp: float, g_kd: float) -> float:
 
     The roots of ``z^2 - a z - b`` in closed form (no LAPACK, so the verdict is the same on every CPU):
     real ``(a +- sqrt(a^2 + 4 b)) / 2``, or a complex pair of modulus ``sqrt(-b)``."""
-    a, b = 1.0 - dt_g_kp - g_kd, g_kd
+    a, b = float(1.0 - dt_g_kp - g_kd), float(g_kd)  # Python floats: an extreme gain overflows to inf, unwarned
     disc = a * a + 4.0 * b
     if disc >= 0.0:
         root = math.sqrt(disc)

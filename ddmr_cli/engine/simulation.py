@@ -10,6 +10,7 @@ diverged with the time it happened; the others carry on unaffected.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -202,11 +203,16 @@ class Simulation:
         """Every model quantity the step loop starts from is finite (the class of issue 26: a value that passes
         its own range check but makes a derived quantity inf or NaN before the first step is refused, naming the
         group and the quantity, instead of a run of NaN metrics)."""
-        nominal = NominalModel.from_robot(self.robot)
-        derived = (("robot", "the plant", self.robot.plant()), ("robot", "the nominal model", nominal),
-                   ("terrain", "the rolling-resistance torque",
-                    self.robot.rolling_resistance_torque(self.terrain.mu)),
-                   ("controller", "the law parameters", self.controller.law_parameters(nominal, control_dt)))
+        with np.errstate(all="ignore"):  # a quantity that overflows is refused below, not warned about on the way
+            nominal = NominalModel.from_robot(self.robot)
+            torque = np.asarray(self.robot.rolling_resistance_torque(self.terrain.mu), dtype=float)
+            derived = (("robot", "the plant", self.robot.plant()), ("robot", "the nominal model", nominal),
+                       ("controller", "the law parameters", self.controller.law_parameters(nominal, control_dt)))
+        for zone, mu, value in zip(self.terrain.names, self.terrain.mu, torque.ravel()):
+            if not math.isfinite(value):
+                raise ConfigError(f"terrain.zones.{zone}.mu", float(mu),
+                                  f"the rolling-resistance torque mu m g R / 2 is {value:g} there: too extreme for the "
+                                  f"model")
         for key, what, value in derived:
             bad = first_non_finite(value)
             if bad is not None:
