@@ -68,7 +68,7 @@ if AVAILABLE:  # defined at module level, not in a closure: numba caches a closu
     _ir, _types, _intrinsic, _tables = _parts
     _WI, _KI, _FI, _ZIGGURAT_R, _ZIGGURAT_INV_R = _tables
     _SIGN = np.array([1.0, -1.0])  # x * -1.0 is -x, to the bit (a sign bit of 1 negates)
-    from numba import uint64 as _u64
+    from numba import njit as _njit, uint64 as _u64
     from numba.extending import overload
 
     @_intrinsic
@@ -102,23 +102,27 @@ if AVAILABLE:  # defined at module level, not in a closure: numba caches a closu
         """numpy's ``pcg64_next_double``: the top 53 bits of run ``r``'s next output, in [0, 1)."""
         return (_next_uint64(states, r) >> _u64(11)) * (1.0 / 9007199254740992.0)
 
-    def _standard_normal(states, r):
-        """numpy's ``random_standard_normal`` (``distributions.c``, its ziggurat) on run ``r``'s row, as numba
-        transcribes it for its ``Generator`` support (its ``r`` is ``bits`` here): the first try, which returns
-        about 99 % of the time, here; the rest in :func:`_ziggurat_rest`."""
+    def _ziggurat_try(states, r):
+        """One try of numpy's ziggurat on run ``r``'s next output: its low 8 bits pick the layer ``idx``, the next
+        the sign, the 52 above it the abscissa ``rabs``; ``x`` the point in the layer's rectangle, signed."""
         bits = _next_uint64(states, r)
         idx = bits & 0xff
         bits >>= 8
-        sign = bits & 0x1
         rabs = (bits >> 1) & 0x000fffffffffffff
-        x = rabs * _WI[idx] * _SIGN[sign]
+        return idx, rabs, rabs * _WI[idx] * _SIGN[bits & 0x1]
+
+    def _standard_normal(states, r):
+        """numpy's ``random_standard_normal`` (``distributions.c``, its ziggurat) on run ``r``'s row, as numba
+        transcribes it for its ``Generator`` support: the first try, which returns about 99 % of the time, here; the
+        rest in :func:`_ziggurat_rest`."""
+        idx, rabs, x = _ziggurat_try(states, r)
         if rabs >= _KI[idx]:
             x = _ziggurat_rest(states, r, idx, rabs, x)
         return x
 
     def _ziggurat_rest(states, r, idx, rabs, x):
-        """The ziggurat past a first try that fell outside its rectangle: the tail (``idx == 0``) or the wedge's
-        test, and the tries after, line for line as numba has them."""
+        """The ziggurat past a try that fell outside its layer's rectangle: the tail (``idx == 0``) or the wedge's
+        test, then the next try, line for line as numba has them."""
         while 1:
             if idx == 0:
                 while 1:
@@ -128,26 +132,18 @@ if AVAILABLE:  # defined at module level, not in a closure: numba caches a closu
                         if (rabs >> 8) & 0x1:
                             return -(_ZIGGURAT_R + xx)
                         return _ZIGGURAT_R + xx
-            else:
-                if (_FI[idx - 1] - _FI[idx]) * _next_double(states, r) + _FI[idx] < np.exp(-0.5 * x * x):
-                    return x
-            bits = _next_uint64(states, r)
-            idx = bits & 0xff
-            bits >>= 8
-            sign = bits & 0x1
-            rabs = (bits >> 1) & 0x000fffffffffffff
-            x = rabs * _WI[idx]
-            if sign & 0x1:
-                x = -x
+            elif (_FI[idx - 1] - _FI[idx]) * _next_double(states, r) + _FI[idx] < np.exp(-0.5 * x * x):
+                return x
+            idx, rabs, x = _ziggurat_try(states, r)
             if rabs < _KI[idx]:
                 return x
 
-    from numba import njit as _njit
-
     # inlined into numba's IR: the words' steps and the ziggurat's first try; the rest (a loop with returns inside,
-    # rare) is called, as numba's whole ziggurat is
+    # rare) is called, as numba's whole ziggurat is. Each is inlined at one call site per function: numba's inliner,
+    # given one function inlined twice into another, warns of variables out of scope (NumbaIRAssumptionWarning)
     _next_uint64 = _njit(inline="always")(_next_uint64)
     _next_double = _njit(inline="always")(_next_double)
+    _ziggurat_try = _njit(inline="always")(_ziggurat_try)
     _ziggurat_rest = _njit(_ziggurat_rest)
     _standard_normal = _njit(inline="always")(_standard_normal)
 
