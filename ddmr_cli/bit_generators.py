@@ -90,61 +90,76 @@ if AVAILABLE:  # defined at module level, not in a closure: numba caches a closu
 
         return words(_types.uint64, _types.uint64, _types.uint64, _types.uint64), codegen
 
-    def _next_uint64(states, r):
-        """Run ``r``'s next PCG64 output (numpy's ``pcg64_next64``): the LCG stepped, then XSL-RR of the new state."""
-        high, low = _lcg_step(states[r, 0], states[r, 1], states[r, 2], states[r, 3])
-        states[r, 0], states[r, 1] = high, low
+    def _next_output(high, low, inc_hi, inc_lo):
+        """PCG64's next output (numpy's ``pcg64_next64``) from the state ``(high, low)`` and increment: the LCG
+        stepped, then XSL-RR of the new state; returns ``(output, high, low)``, the new state. The state goes by
+        value, so a block of draws keeps it in registers."""
+        high, low = _lcg_step(high, low, inc_hi, inc_lo)
         rotation = high >> _u64(58)
         folded = high ^ low
-        return (folded >> rotation) | (folded << ((_u64(64) - rotation) & _u64(63)))
+        return (folded >> rotation) | (folded << ((_u64(64) - rotation) & _u64(63))), high, low
 
-    def _next_double(states, r):
-        """numpy's ``pcg64_next_double``: the top 53 bits of run ``r``'s next output, in [0, 1)."""
-        return (_next_uint64(states, r) >> _u64(11)) * (1.0 / 9007199254740992.0)
+    def _next_double(high, low, inc_hi, inc_lo):
+        """numpy's ``pcg64_next_double``: the top 53 bits of the next output, in [0, 1); and the new state."""
+        bits, high, low = _next_output(high, low, inc_hi, inc_lo)
+        return (bits >> _u64(11)) * (1.0 / 9007199254740992.0), high, low
 
-    def _ziggurat_try(states, r):
-        """One try of numpy's ziggurat on run ``r``'s next output: its low 8 bits pick the layer ``idx``, the next
-        the sign, the 52 above it the abscissa ``rabs``; ``x`` the point in the layer's rectangle, signed."""
-        bits = _next_uint64(states, r)
+    def _ziggurat_try(high, low, inc_hi, inc_lo):
+        """One try of numpy's ziggurat on the next output: its low 8 bits pick the layer ``idx``, the next the sign,
+        the 52 above it the abscissa ``rabs``; ``x`` the point in the layer's rectangle, signed; and the new state."""
+        bits, high, low = _next_output(high, low, inc_hi, inc_lo)
         idx = bits & 0xff
         bits >>= 8
         rabs = (bits >> 1) & 0x000fffffffffffff
-        return idx, rabs, rabs * _WI[idx] * _SIGN[bits & 0x1]
+        return idx, rabs, rabs * _WI[idx] * _SIGN[bits & 0x1], high, low
 
-    def _standard_normal(states, r):
-        """numpy's ``random_standard_normal`` (``distributions.c``, its ziggurat) on run ``r``'s row, as numba
-        transcribes it for its ``Generator`` support: the first try, which returns about 99 % of the time, here; the
-        rest in :func:`_ziggurat_rest`."""
-        idx, rabs, x = _ziggurat_try(states, r)
+    def _normal(high, low, inc_hi, inc_lo):
+        """numpy's ``random_standard_normal`` (``distributions.c``, its ziggurat) on the generator ``(high, low,
+        inc_hi, inc_lo)``, as numba transcribes it for its ``Generator`` support: ``(x, high, low)``, the normal and
+        the new state. The first try, which returns about 99 % of the time, here; the rest in
+        :func:`_ziggurat_rest`."""
+        idx, rabs, x, high, low = _ziggurat_try(high, low, inc_hi, inc_lo)
         if rabs >= _KI[idx]:
-            x = _ziggurat_rest(states, r, idx, rabs, x)
-        return x
+            x, high, low = _ziggurat_rest(high, low, inc_hi, inc_lo, idx, rabs, x)
+        return x, high, low
 
-    def _ziggurat_rest(states, r, idx, rabs, x):
+    def _ziggurat_rest(high, low, inc_hi, inc_lo, idx, rabs, x):
         """The ziggurat past a try that fell outside its layer's rectangle: the tail (``idx == 0``) or the wedge's
-        test, then the next try, line for line as numba has them."""
+        test, then the next try, line for line as numba has them; ``(x, high, low)``."""
         while 1:
             if idx == 0:
                 while 1:
-                    xx = -_ZIGGURAT_INV_R * np.log1p(-_next_double(states, r))
-                    yy = -np.log1p(-_next_double(states, r))
+                    u, high, low = _next_double(high, low, inc_hi, inc_lo)
+                    xx = -_ZIGGURAT_INV_R * np.log1p(-u)
+                    u, high, low = _next_double(high, low, inc_hi, inc_lo)
+                    yy = -np.log1p(-u)
                     if yy + yy > xx * xx:
                         if (rabs >> 8) & 0x1:
-                            return -(_ZIGGURAT_R + xx)
-                        return _ZIGGURAT_R + xx
-            elif (_FI[idx - 1] - _FI[idx]) * _next_double(states, r) + _FI[idx] < np.exp(-0.5 * x * x):
-                return x
-            idx, rabs, x = _ziggurat_try(states, r)
+                            return -(_ZIGGURAT_R + xx), high, low
+                        return _ZIGGURAT_R + xx, high, low
+            else:
+                u, high, low = _next_double(high, low, inc_hi, inc_lo)
+                if (_FI[idx - 1] - _FI[idx]) * u + _FI[idx] < np.exp(-0.5 * x * x):
+                    return x, high, low
+            idx, rabs, x, high, low = _ziggurat_try(high, low, inc_hi, inc_lo)
             if rabs < _KI[idx]:
-                return x
+                return x, high, low
 
-    # inlined into numba's IR: the words' steps and the ziggurat's first try; the rest (a loop with returns inside,
-    # rare) is called, as numba's whole ziggurat is. Each is inlined at one call site per function: numba's inliner,
-    # given one function inlined twice into another, warns of variables out of scope (NumbaIRAssumptionWarning)
-    _next_uint64 = _njit(inline="always")(_next_uint64)
+    def _standard_normal(states, r):
+        """:func:`_normal` on run ``r``'s row of :func:`states`, its state written back."""
+        x, high, low = _normal(states[r, 0], states[r, 1], states[r, 2], states[r, 3])
+        states[r, 0], states[r, 1] = high, low
+        return x
+
+    # inlined into numba's IR: the words' steps, the ziggurat's first try and the row's read and write; the rest (a
+    # loop with returns inside, rare) is called, as numba's whole ziggurat is. Each is inlined at one call site per
+    # function: numba's inliner, given a function with a branch inlined twice into another, warns of variables out
+    # of scope (NumbaIRAssumptionWarning)
+    _next_output = _njit(inline="always")(_next_output)
     _next_double = _njit(inline="always")(_next_double)
     _ziggurat_try = _njit(inline="always")(_ziggurat_try)
     _ziggurat_rest = _njit(_ziggurat_rest)
+    _normal = _njit(inline="always")(_normal)
     _standard_normal = _njit(inline="always")(_standard_normal)
 
     @cached_law
@@ -153,9 +168,12 @@ if AVAILABLE:  # defined at module level, not in a closure: numba caches a closu
         ``r``'s generator (``states[r]``, :func:`states`), for runs ``first .. end - 1``: numpy's
         ``standard_normal(out=out[r])`` of each run's generator, the same numbers and the same state after them."""
         for r in range(first, end):
-            for i in range(out.shape[1]):
+            high, low, inc_hi, inc_lo = states[r, 0], states[r, 1], states[r, 2], states[r, 3]
+            for i in range(out.shape[1]):  # the state in registers, written back once
                 for j in range(out.shape[2]):
-                    out[r, i, j] = _standard_normal(states, r)
+                    x, high, low = _normal(high, low, inc_hi, inc_lo)
+                    out[r, i, j] = x
+            states[r, 0], states[r, 1] = high, low
 
     @cached_law
     def _seeded(words, out):
