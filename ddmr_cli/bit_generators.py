@@ -14,14 +14,16 @@ at 10,000 runs 0.3 MB held where the objects held 7.9 MB.
 is a 128-bit LCG, ``state <- state * M + inc`` (``M`` numpy's ``PCG_DEFAULT_MULTIPLIER_128``, ``inc`` odd); each
 64-bit output is the XSL-RR of the new state: its high and low halves xor-ed, rotated right by its top 6 bits. A
 run's state is a row ``(state_hi, state_lo, inc_hi, inc_lo)`` of a ``uint64`` array (:func:`states`); compiled code
-steps it with LLVM's own 128-bit integers (:func:`_lcg_step`, one multiply-add).
+steps it with LLVM's own 128-bit integers (:func:`_lcg_step`, one multiply-add), the words passed by value, so that
+a run's draws keep them in registers (a row stored and read back at every draw made a block's draws 45 % slower).
 
 **Drawing.** :func:`next_normal` is numpy's ``Generator.standard_normal()``: as plain Python, the generator's own
 method; compiled, numpy's ziggurat (``random_standard_normal``, the transcription numba ships for its ``Generator``
-support, with its tables) on the run's row. The same number, and the generator's state after it is numpy's (tested
-over 50,000 normals one at a time and 600,000 by block, the ziggurat's tail and wedge included). The step loop draws
-each run's normals one at a time as it steps (:func:`next_normal`); :func:`standard_normals_of`
-draws a block of runs' rows at once (a run's first normals, the sensor's). :func:`generator_at` gives back a numpy
+support, with its tables) on the run's words (:func:`stream_of` reads them from its row, :func:`keep` writes them
+back). The same number, and the generator's state after it is numpy's (tested over 50,000 normals one at a time and
+600,000 by block, the ziggurat's tail and wedge included). The step loop draws each run's normals one at a time as it
+steps (:func:`next_normal`); :func:`standard_normals_of` draws a block of runs' rows at once (a run's first normals,
+the sensor's). :func:`generator_at` gives back a numpy
 ``Generator`` at a row's state, to go on drawing from it in numpy.
 
 The ziggurat's tables are numba's (``numba.np.random._constants``, numpy's ``ziggurat_constants.h``): where a numba
@@ -145,22 +147,15 @@ if AVAILABLE:  # defined at module level, not in a closure: numba caches a closu
             if rabs < _KI[idx]:
                 return x, high, low
 
-    def _standard_normal(states, r):
-        """:func:`_normal` on run ``r``'s row of :func:`states`, its state written back."""
-        x, high, low = _normal(states[r, 0], states[r, 1], states[r, 2], states[r, 3])
-        states[r, 0], states[r, 1] = high, low
-        return x
-
-    # inlined into numba's IR: the words' steps, the ziggurat's first try and the row's read and write; the rest (a
-    # loop with returns inside, rare) is called, as numba's whole ziggurat is. Each is inlined at one call site per
-    # function: numba's inliner, given a function with a branch inlined twice into another, warns of variables out
-    # of scope (NumbaIRAssumptionWarning)
+    # inlined into numba's IR: the words' steps and the ziggurat's first try; the rest (a loop with returns inside,
+    # rare) is called, as numba's whole ziggurat is. Each is inlined at one call site per function: numba's inliner,
+    # given a function with a branch inlined twice into another, warns of variables out of scope
+    # (NumbaIRAssumptionWarning)
     _next_output = _njit(inline="always")(_next_output)
     _next_double = _njit(inline="always")(_next_double)
     _ziggurat_try = _njit(inline="always")(_ziggurat_try)
     _ziggurat_rest = _njit(_ziggurat_rest)
     _normal = _njit(inline="always")(_normal)
-    _standard_normal = _njit(inline="always")(_standard_normal)
 
     @cached_law
     def standard_normals_of(states, out, first, end):
@@ -192,19 +187,44 @@ else:
     standard_normals_of = None
 
 
-def next_normal(streams, r: int) -> float:
-    """Run ``r``'s next standard normal: numpy's ``Generator.standard_normal()`` of ``streams[r]`` (``streams``: a
-    list of generators) as plain Python; compiled, numpy's ziggurat on row ``r`` of ``streams`` (:func:`states`; module
-    docstring): the same number, the same state after it. A run's normals drawn one at a time in the loop are the
-    numbers ``standard_normal(size)`` gives at once."""
-    return streams[r].standard_normal()
+def stream_of(streams, r: int):
+    """Run ``r``'s stream, for :func:`next_normal`: its ``numpy.random.Generator`` (``streams``: a list of them) as
+    plain Python; compiled, its row of :func:`states` read into four words (the step loop keeps them in registers;
+    :func:`keep` writes them back)."""
+    return streams[r]
+
+
+def next_normal(stream):
+    """``(x, stream)``: the stream's next standard normal and the stream after it. As plain Python, numpy's
+    ``Generator.standard_normal()`` (the generator itself changes); compiled, numpy's ziggurat on the words
+    (module docstring): the same number, the same state after it. A run's normals drawn one at a time in the loop
+    are the numbers ``standard_normal(size)`` gives at once."""
+    return stream.standard_normal(), stream
+
+
+def keep(streams, r: int, stream) -> None:
+    """Write run ``r``'s stream back after its draws (compiled: the words into its row of :func:`states`; a numpy
+    generator holds its own state)."""
 
 
 if AVAILABLE:
-    @overload(next_normal, inline="always")
-    def _next_normal_compiled(streams, r):
+    @overload(stream_of, inline="always")
+    def _stream_of_compiled(streams, r):
         def impl(streams, r):
-            return _standard_normal(streams, r)
+            return streams[r, 0], streams[r, 1], streams[r, 2], streams[r, 3]
+        return impl
+
+    @overload(next_normal, inline="always")
+    def _next_normal_compiled(stream):
+        def impl(stream):
+            x, high, low = _normal(stream[0], stream[1], stream[2], stream[3])
+            return x, (high, low, stream[2], stream[3])
+        return impl
+
+    @overload(keep, inline="always")
+    def _keep_compiled(streams, r, stream):
+        def impl(streams, r, stream):
+            streams[r, 0], streams[r, 1] = stream[0], stream[1]
         return impl
 
 
@@ -340,5 +360,6 @@ def drawn_compiled() -> bool:
     return AVAILABLE and jit_enabled()
 
 
-__all__ = ["AVAILABLE", "MULTIPLIER", "STATE_WORDS", "drawn_compiled", "generator_at", "generators", "next_normal",
-           "require_compiled_draws", "seed_words", "standard_normals_of", "state_of", "states"]
+__all__ = ["AVAILABLE", "MULTIPLIER", "STATE_WORDS", "drawn_compiled", "generator_at", "generators", "keep",
+           "next_normal", "require_compiled_draws", "seed_words", "standard_normals_of", "state_of", "states",
+           "stream_of"]

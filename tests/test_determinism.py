@@ -279,23 +279,27 @@ def test_noise_drawn_by_blocks_of_runs_is_the_noise_drawn_at_once():
 
 
 def test_the_step_loops_draws_one_at_a_time_are_numpys_stream():
-    """The step loop draws each run's normals one at a time as it steps (``next_normal(streams, r)``), compiled
-    (numpy's ziggurat on the run's PCG64 row) and as plain Python (the generator's own ``standard_normal()``): the
-    numbers numpy's ``standard_normal(size)`` gives the run's generator at once, and the generator's state after
-    them."""
+    """The step loop draws each run's normals one at a time as it steps (``stream_of``, ``next_normal``, ``keep``),
+    compiled (numpy's ziggurat on the run's PCG64 words) and as plain Python (the generator's own
+    ``standard_normal()``): the numbers numpy's ``standard_normal(size)`` gives the run's generator at once, and the
+    generator's state after them, in two chunks as in the loop."""
     from ddmr_cli import bit_generators
     from ddmr_cli.compiled import law
 
-    def draw_each(streams, out):
+    def draw_each(streams, out, first, end):
         for r in range(out.shape[0]):
-            for i in range(out.shape[1]):
-                out[r, i] = bit_generators.next_normal(streams, r)
+            stream = bit_generators.stream_of(streams, r)
+            for i in range(first, end):
+                x, stream = bit_generators.next_normal(stream)
+                out[r, i] = x
+            bit_generators.keep(streams, r, stream)
 
     seeds = (3, 11, 2**32 - 1)
     compiled, plain = bit_generators.states(seeds), bit_generators.generators(seeds)
     for drawn_by, streams in ((law(draw_each), compiled), (draw_each, plain)):
         drawn = np.empty((len(seeds), 50_000))
-        drawn_by(streams, drawn)
+        drawn_by(streams, drawn, 0, 20_000)
+        drawn_by(streams, drawn, 20_000, 50_000)
         for run, seed in enumerate(seeds):
             numpys = np.random.default_rng(seed)
             assert np.array_equal(drawn[run], numpys.standard_normal(50_000)), (drawn_by, seed)

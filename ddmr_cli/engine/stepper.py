@@ -39,14 +39,14 @@ from ddmr_cli.model.kinematics import deviation, inverse, pose_error
 from ddmr_cli.model.dynamics import saturate, wheel_acceleration
 from ddmr_cli.model.scenario import damping_scale
 from ddmr_cli.model.terrain import zone_of
-from ddmr_cli.bit_generators import next_normal
+from ddmr_cli.bit_generators import keep, next_normal, stream_of
 
 @law
 def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, streams, xs, sums, accumulators,
               series, series_slot, bands, band_first, first_run, end_run):
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; run r draws its
-    standard normals from its own stream as it steps (three a step: ``next_normal(streams, r)``,
-    :mod:`ddmr_cli.bit_generators`), ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the sensor is
+    standard normals from its own stream as it steps (three a step: ``stream_of(streams, r)``, ``next_normal``,
+    ``keep``; :mod:`ddmr_cli.bit_generators`), ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the sensor is
     noisy).
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
@@ -83,6 +83,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
     to_control, kc = (m - k0 % m) % m, (k0 + m - 1) // m
     stride = world.band_stride
     to_band, band_j = (stride - k0 % stride) % stride, 0  # band_j: the grid point's row in this chunk's buffer
+    stream = stream_of(streams, r)  # the run's generator, in registers until keep() below
     for j in range(n_steps):
         k = k0 + j
         x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
@@ -121,7 +122,8 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
         u_R, u_L = actuator.apply(act, run, line, k, us_R, us_L)
         # this step's disturbances, held over it (5): the run's next three normals, in the channels' order
         for c in range(3):  # one call of the draw (numba inlines a draw called three times with scope warnings)
-            noise[c] = ou_step(world.ou_a[c], world.ou_b[c], noise[c], next_normal(streams, r))
+            xi, stream = next_normal(stream)
+            noise[c] = ou_step(world.ou_a[c], world.ou_b[c], noise[c], xi)
         n_R, n_L, n_u = noise[0], noise[1], noise[2]
         phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)
@@ -161,6 +163,7 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
         if sen.encoder:
             run["wheel_angle"][0] = sensor.wheel_angle(run["wheel_angle"][0], w0_R, w_R, world.dt)
             run["wheel_angle"][1] = sensor.wheel_angle(run["wheel_angle"][1], w0_L, w_L, world.dt)
+    keep(streams, r, stream)
     run["x"], run["y"], run["theta"], run["distance"] = x, y, theta, dist
     run["w"][0], run["w"][1] = w_R, w_L
     run["w_d_prev"][0], run["w_d_prev"][1] = wdp_R, wdp_L
@@ -195,9 +198,11 @@ def external_control(k, j, world, plant, params, runs, lines, controller_state, 
             external_control_instant(world, plant, params, run, line, st, k, xs, r, j, x, y, theta, w_R, w_L)
         u_R, u_L = actuator.apply(world.actuator, run, line, k, run["u_sent"][0], run["u_sent"][1])
         # this step's disturbances (5): the roughness is the ground's, scenario 2's damping scale acts on the motor
-        noise = run["noise"]
+        noise, stream = run["noise"], stream_of(streams, r)
         for c in range(3):  # one call of the draw, as in run_steps
-            noise[c] = ou_step(world.ou_a[c], world.ou_b[c], noise[c], next_normal(streams, r))
+            xi, stream = next_normal(stream)
+            noise[c] = ou_step(world.ou_a[c], world.ou_b[c], noise[c], xi)
+        keep(streams, r, stream)
         n_u = noise[2]
         phase = zone_of(world.phase_edges, dist) if world.phase_by_distance else world.phase[k]
         zone = zone_of(world.zone_edges, dist)
