@@ -46,8 +46,8 @@ def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, 
               series, series_slot, bands, band_first, first_run, end_run):
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``; run r draws its
     standard normals from its own stream as it steps (three a step: ``stream_of(streams, r)``, ``next_normal``,
-    ``keep``; :mod:`ddmr_cli.bit_generators`), ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the sensor is
-    noisy).
+    ``keep``; :mod:`ddmr_cli.bit_generators`), ``xs[r, j]`` are its sensor normals (``xs`` is a dummy unless the
+    sensor is noisy).
 
     ``world`` and ``plant`` are :class:`~ddmr_cli.engine.batch.World` and :class:`~ddmr_cli.model.robot.Plant`;
     ``runs``, ``controller_state`` and ``accumulators`` (one record per run) and ``lines`` (each run's actuator
@@ -137,8 +137,8 @@ def run_steps(k0, n_steps, world, plant, params, r, run, line, st, streams, xs, 
         t = k * world.dt
         s_R = diagnostics[surface, 0] if surface >= 0 else math.nan
         s_L = diagnostics[surface, 1] if surface >= 0 else math.nan
-        accumulate(sums, r, acc, k, world.settle_steps, world.zone_settle_steps, 1 + zone, world.phase_base + phase, t, dev, e_x, e_y, e_th,
-                   sat_R or sat_L,
+        accumulate(sums, r, acc, k, world.settle_steps, world.zone_settle_steps, 1 + zone, world.phase_base + phase, t,
+                   dev, e_x, e_y, e_th, sat_R or sat_L,
                    u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, diagnostics, world.estimation,
                    plant.back_emf_constant, plant.armature_resistance, world.hp, world.hp_zi)
         if not dev <= world.divergence_bound and run["divergence_step"] < 0:
