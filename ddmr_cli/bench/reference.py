@@ -18,9 +18,10 @@ controller SMC (``smc_ndo`` or ``smc_ndo_nno``: proportional surface, ``sat`` sw
 without the RBF network), ideal sensor and actuator, control at every plant step, explicit Euler, a scenario
 without damping uncertainty (``paper_1``), any terrain zones, any trajectory (the engine's reference table).
 
-Noise: the engine's :class:`~ddmr_cli.model.noise.NoiseStreams` (one ``numpy.random.default_rng(seed)`` per run:
-3 normals for the OU initial state, then 3 per step, drawn in chunks of the engine's budget as the engine draws them),
-so the kernel reads the very same streams; drawing them is part of the timed work (it is of the engine's too).
+Noise: the engine's :class:`~ddmr_cli.model.noise.NoiseStreams` (each run's ``numpy.random.default_rng(seed)``
+stream: 3 normals for the OU initial state, then 3 per step), drawn here by block in chunks of the engine's budget
+(:func:`~ddmr_cli.bit_generators.standard_normals_of`, where the engine draws them one at a time as it steps), so
+the kernel reads the very same streams; drawing them is part of the timed work (it is of the engine's too).
 
 Two layouts of the same loop (``layout=``):
 
@@ -44,7 +45,8 @@ Two layouts of the same loop (``layout=``):
 
 Measured on the 2-core AVX-512 reference machine (kernel alone, noise drawn beforehand, ns per run and step):
 lanes 15 (SMC-NDO) and 29 (SMC-NDO-NNO), scalar 50 and 116; with the noise (31 ns a step at 50 runs, 40 at
-1000: numpy's generators, the same cost for the engine), lanes 52-58 and 66-72. The lanes layout wins by
+1000, measured then with numpy's own generators; ddmr's own draw of the same streams now takes about 8 ns a step),
+lanes 52-58 and 66-72. The lanes layout wins by
 vectorising (its exp and sincos run about 1.8 ns per lane against 8 ns for libm's exp in a loop) and by
 overlapping the runs' dependency chains; its block size matters little (8 runs: 10 % slower, 32 to 64 the same).
 
