@@ -44,8 +44,12 @@ CONTROLLERS = ("pid", "smc", "smc_ndo", "smc_ndo_nno")
 REFERENCE_CONTROLLERS = ("smc_ndo", "smc_ndo_nno")
 #: the engine may be at most this many times slower than the reference kernel (the issue's target)
 REFERENCE_TARGET = 1.5
-#: alternating repeats of each figure that is a median (the reference comparison, the threads' ratio)
+#: alternating repeats of each figure that is a median (the reference comparison; the threads' ratio with --quick)
 REPEATS = 3
+#: alternating pairs of the threads' ratio and its two ceilings in the full bench: the host's two cores drift apart in
+#: speed by turns for seconds at a time, and a median of 3 pairs read 1.63x, 1.76x and 1.81x on one tree within 20
+#: minutes (issue 28); a pair of the threads' line is about 0.3 s of SMC-NDO-NNO
+THREAD_REPEATS = 7
 #: wall-time targets [s] on a 2-core machine (issue 28), for the full sizes: each line prints its ratio to them
 WALL_TARGETS = {
     "run": 1.3,            # a single `ddmr run`, with its plots, caches warm
@@ -392,20 +396,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
     reference_lines(tuple(b for b in batches if b > 1), durations)
     cores, big = thread_count(0), batches[-1]
+    pairs = REPEATS if quick else THREAD_REPEATS
     with measuring(f"one thread against {cores} cores"):
-        one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big])
+        one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big], repeats=pairs)
     print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the median "
-          f"of {REPEATS} alternating pairs; one thread {one / 1e6:.3f} M/s)")
+          f"of {pairs} alternating pairs; one thread {one / 1e6:.3f} M/s)")
     if cores > 1 and not quick:  # quick: a tenth of a second of work is too short to read the machine by
         with measuring(f"what {cores} cores give independent processes"):
-            ceiling = host_ceiling(cores, 10_000_000)
+            ceiling = host_ceiling(cores, 10_000_000, repeats=pairs)
         print(f"   this machine's own ceiling: {cores} independent processes of pure CPU work at once run at {ceiling:.2f}x "
-              f"one alone (the median of {REPEATS} alternating pairs), the most {cores} threads can give here; the "
+              f"one alone (the median of {pairs} alternating pairs), the most {cores} threads can give here; the "
               f"engine's threads reach {ratio / ceiling:.0%} of it")
         with measuring(f"{cores} independent batches at once"):
-            own = engine_ceiling(cores, big, "smc_ndo_nno", durations[big])
+            own = engine_ceiling(cores, big, "smc_ndo_nno", durations[big], repeats=pairs)
         print(f"   the engine's own ceiling: {cores} independent batches of the same runs at once, one a thread "
-              f"(nothing shared), run at {own:.2f}x one alone (the median of {REPEATS} alternating pairs); one batch "
+              f"(nothing shared), run at {own:.2f}x one alone (the median of {pairs} alternating pairs); one batch "
               f"split over {cores} threads reaches {ratio / own:.0%} of it (the rest: the meeting points of its "
               f"chunks, its serial set-up and metrics)")
     with measuring("the laws as plain Python"):
