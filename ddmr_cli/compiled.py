@@ -144,6 +144,49 @@ def without_counting() -> dict:
     return {"_nrt": False} if isinstance(getattr(CPUTargetOptions, "_nrt", None), TargetOptions.Mapping) else {}
 
 
+def _stack_matrix_python(rows, columns):
+    """A ``(rows, columns)`` float64 array for scratch a compiled law owns alone (as Python: a zeroed numpy array).
+
+    Compiled (an intrinsic), it lives in the law's stack frame: an LLVM ``alloca`` in its entry block,
+    uninitialised, so no allocation (which the step loop, compiled without reference counting, cannot make:
+    :func:`loop_law`), and LLVM knows that no argument points into it, which it must to vectorise a loop that
+    writes it. ``rows`` and ``columns`` must be constants of the compiled code (module-level ints)."""
+    import numpy as np
+
+    return np.zeros((rows, columns))
+
+
+if AVAILABLE:
+    from numba import types
+    from numba.core import cgutils
+    from numba.extending import intrinsic
+
+    @intrinsic
+    def stack_matrix(typingctx, rows, columns):
+        if not (isinstance(rows, types.IntegerLiteral) and isinstance(columns, types.IntegerLiteral)):
+            return None
+        n_rows, n_columns = rows.literal_value, columns.literal_value
+        array_type = types.Array(types.float64, 2, "C")
+
+        def codegen(context, builder, signature, args):
+            import llvmlite.ir as ir
+            from numba.np.arrayobj import populate_array
+
+            data = cgutils.alloca_once(builder, ir.DoubleType(), size=n_rows * n_columns)
+            array = context.make_array(array_type)(context, builder)
+            itemsize = context.get_abi_sizeof(context.get_data_type(types.float64))
+            intp = lambda v: context.get_constant(types.intp, v)  # noqa: E731
+            populate_array(array, data=data, shape=[intp(n_rows), intp(n_columns)],
+                           strides=[intp(n_columns * itemsize), intp(itemsize)], itemsize=intp(itemsize), meminfo=None)
+            return array._getvalue()
+
+        return array_type(rows, columns), codegen
+
+    stack_matrix.__doc__ = _stack_matrix_python.__doc__
+else:  # pragma: no cover - without numba the laws run as Python
+    stack_matrix = _stack_matrix_python
+
+
 def plain(fn):
     """The plain Python function behind a law, for set-up code that calls a law once on a few floats: calling the
     compiled law from Python would compile it in every process (about 0.4 s). Python rounds every operation;

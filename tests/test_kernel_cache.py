@@ -61,7 +61,8 @@ _SCRIPT = textwrap.dedent("""
         return {spec: job(spec) for spec in specs}
 
     def cache_counts():  # step loops (signatures of run_chunk copies) this process loaded from the cache, compiled
-        loops = [m.run_chunk for name, m in list(sys.modules.items()) if name.startswith("ddmr_stepper_")]
+        loops = [m.run_chunk for name, m in list(sys.modules.items())
+                 if name.startswith(("ddmr_stepper_", "ddmr_lanes_"))]
         return [sum(len(f.stats.cache_hits) for f in loops),  # signatures, each counted once
                 sum(len(f.stats.cache_misses) for f in loops)]
 
@@ -142,7 +143,7 @@ def _run(cache: Path, *args: str, log: list | None = None, counts: list | None =
 
 def _entries_per_copy(cache: Path) -> Counter:
     """How many compiled signatures numba's index holds for each generated copy's run_chunk (one .nbc each)."""
-    pattern = re.compile(r"^(ddmr_stepper_\w+?)\.run_chunk-\d+\.py\d+\.\d+\.nbc$")
+    pattern = re.compile(r"^(ddmr_(?:stepper|lanes)_\w+?)\.run_chunk-\d+\.py\d+\.\d+\.nbc$")
     found = (pattern.match(p.name) for p in (cache / "kernels" / "__pycache__").glob("*.nbc"))
     return Counter(m.group(1) for m in found if m)
 
@@ -196,7 +197,7 @@ def test_a_cache_entry_compiled_for_another_call_is_named_and_recompiled(tmp_pat
     step, named on stderr, deleted and recompiled, and the numbers are the cold ones."""
     cache, jobs = tmp_path / "warm", ["smc:paper_2:-", "smc_ndo:paper_2:-"]
     cold = _run(cache, *jobs)
-    one, other = sorted((cache / "kernels" / "__pycache__").glob("ddmr_stepper_*.run_chunk-*.1.nbc"))
+    one, other = sorted((cache / "kernels" / "__pycache__").glob("ddmr_*.run_chunk-*.1.nbc"))
     one_bytes, other_bytes = one.read_bytes(), other.read_bytes()
     one.write_bytes(other_bytes)
     other.write_bytes(one_bytes)

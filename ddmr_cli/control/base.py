@@ -37,6 +37,22 @@ measured wheel speeds, so their ``dt`` is the control period. ``p`` is the named
 array whose fields :meth:`WheelController.state_fields` lists. Adding a controller is one module with a
 subclass and its laws, plus a YAML file in ``conf/controller`` (see docs/extending.md): the engine,
 the compile cache, determinism and validation come with it.
+
+Lanes (optional). A controller whose module also defines the four laws below runs, in the paper's loop (ideal
+sensor and actuator, control at every step, explicit Euler), by blocks of runs stepped together, the runs as a
+vectorised inner axis (:mod:`ddmr_cli.engine.lanes`). The block's per-run values sit in rows ``(row, lane)`` of
+two arrays: ``L``, the engine's, whose first rows (:data:`LANE_ROWS`) the contract fixes, and ``C``, the
+controller's own, of ``LANE_STATE_ROWS`` rows (a constant of the controller's module). The laws compute what
+``command`` and ``update`` do, through the same per-run definitions, for lanes ``0 .. nb - 1``:
+
+``lanes_load(p, st, C, l)`` / ``lanes_store(p, st, C, l)``
+    Copy run record ``st`` into lane ``l`` of ``C``, and back.
+``lanes_command(p, C, L, nb, k)``
+    ``command`` for every lane: reads ``L[W_R]`` ... ``L[WDD_L]``, writes ``L[UC_R]``, ``L[UC_L]`` and the
+    diagnostic channels, channel ``c`` in rows ``L[DIAGNOSTICS + 2 c]`` (right) and ``+ 1`` (left).
+``lanes_update(p, C, L, nb)``
+    ``estimates`` (when the controller has one) and ``update`` for every lane: also reads ``L[U_R]``, ``L[U_L]``
+    (applied) and ``L[SAT_R]``, ``L[SAT_L]`` (1.0/0.0).
 """
 
 from __future__ import annotations
@@ -52,6 +68,12 @@ from ddmr_cli.model.robot import NominalModel
 #: Largest stable ``dt * rate`` of a first-order mode under the plant's integrator (explicit Euler: 2, RK4: 2.78)
 STABILITY_LIMIT = {"euler": 2.0, "rk4": 2.78}
 
+
+#: the rows of a block of runs that the lanes laws share with the engine (module docstring, "Lanes"), then up to
+#: :data:`LANE_CHANNELS` diagnostic channels from row DIAGNOSTICS
+W_R, W_L, WD_R, WD_L, WDD_R, WDD_L, UC_R, UC_L, U_R, U_L, SAT_R, SAT_L, DIAGNOSTICS = range(13)
+LANE_CHANNELS = 4
+LANE_ROWS = DIAGNOSTICS + 2 * LANE_CHANNELS
 
 #: kinds of diagnostic channel (see the module docstring)
 SURFACE, ESTIMATE, SIGNAL = "surface", "estimate", "signal"
@@ -144,6 +166,12 @@ class WheelController:
                 raise ConfigError("simulation.dt", dt,
                                   f"must be < {limit / rate:.3g} s for {integrator} with {what} = {rate:.3g} 1/s")
 
+    def runs_in_lanes(self) -> bool:
+        """True when the controller's module defines the lanes laws (module docstring) and its channels fit."""
+        laws = ("LANE_STATE_ROWS", "lanes_load", "lanes_store", "lanes_command", "lanes_update")
+        return (all(hasattr(self.laws, name) for name in laws)
+                and len(self.diagnostics()) <= LANE_CHANNELS)
+
     def initial_state(self, n_runs: int) -> np.ndarray:
         """A zeroed state record per run (``start`` sets the initial values at the first step): the fields of
         :meth:`state_fields` and the diagnostic channels, ``(max(1, n), 2)`` (one unused row when there are none)."""
@@ -151,5 +179,6 @@ class WheelController:
         return np.zeros(n_runs, dtype=np.dtype(self.state_fields() + [(DIAGNOSTICS_FIELD, "f8", (rows, 2))]))
 
 
-__all__ = ["DIAGNOSTICS_FIELD", "Diagnostic", "ESTIMATE", "ESTIMATE_PREFIX", "KINDS", "SIGNAL", "STABILITY_LIMIT", "SURFACE", "StepRate",
-           "WheelController", "series_name"]
+__all__ = ["DIAGNOSTICS", "LANE_CHANNELS", "LANE_ROWS", "SAT_L", "SAT_R", "UC_L", "UC_R", "U_L", "U_R", "WDD_L",
+           "WDD_R", "WD_L", "WD_R", "W_L", "W_R", "DIAGNOSTICS_FIELD", "Diagnostic", "ESTIMATE", "ESTIMATE_PREFIX",
+           "KINDS", "SIGNAL", "STABILITY_LIMIT", "SURFACE", "StepRate", "WheelController", "series_name"]

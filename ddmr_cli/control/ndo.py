@@ -28,17 +28,28 @@ def start(p, z, w0_R, w0_L):
 
 
 @law
+def estimate_of(p, z_R, z_L, w_R, w_L):
+    """(21): ``d_hat = z + Gamma w`` [rad/s^2], the state given by value."""
+    return z_R + p.gain[0] * w_R, z_L + p.gain[1] * w_L
+
+
+@law
 def estimate(p, z, w_R, w_L):
-    """(21): ``d_hat = z + Gamma w`` [rad/s^2]."""
-    return z[0] + p.gain[0] * w_R, z[1] + p.gain[1] * w_L
+    """(21) on the state array ``z``: :func:`estimate_of`."""
+    return estimate_of(p, z[0], z[1], w_R, w_L)
+
+
+@law
+def next_state(p, nominal, dt, z_R, z_L, d_hat_R, d_hat_L, w_R, w_L, u_R, u_L):
+    """(22), one Euler step, by value: ``z - dt Gamma (d_hat + f(w) + g u)``."""
+    a_R, a_L = nominal_acceleration(nominal, w_R, w_L, u_R, u_L)
+    return z_R - (dt * p.gain[0]) * (d_hat_R + a_R), z_L - (dt * p.gain[1]) * (d_hat_L + a_L)
 
 
 @law
 def update(p, nominal, dt, z, d_hat_R, d_hat_L, w_R, w_L, u_R, u_L):
-    """(22), one Euler step: ``z <- z - dt Gamma (d_hat + f(w) + g u)``."""
-    a_R, a_L = nominal_acceleration(nominal, w_R, w_L, u_R, u_L)
-    z[0] -= (dt * p.gain[0]) * (d_hat_R + a_R)
-    z[1] -= (dt * p.gain[1]) * (d_hat_L + a_L)
+    """(22) on the state array ``z``: :func:`next_state`."""
+    z[0], z[1] = next_state(p, nominal, dt, z[0], z[1], d_hat_R, d_hat_L, w_R, w_L, u_R, u_L)
 
 
 class NonlinearDisturbanceObserver:

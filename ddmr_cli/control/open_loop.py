@@ -5,9 +5,9 @@ from __future__ import annotations
 import sys
 from typing import NamedTuple
 
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import inlined_law, law
 from ddmr_cli.checks import compact, finite, per_wheel
-from ddmr_cli.control.base import SURFACE, Diagnostic, WheelController
+from ddmr_cli.control.base import DIAGNOSTICS, SURFACE, UC_L, UC_R, W_L, W_R, WD_L, WD_R, Diagnostic, WheelController
 from ddmr_cli.model.robot import NominalModel
 
 
@@ -39,6 +39,33 @@ def estimates(p, st, w_R, w_L, u_R, u_L):
     nothing changes (what ``command`` wrote stays). A controller whose estimate depends on the applied voltage
     (ADRC's) defines its own; the step loop uses this one for every controller that does not
     (:mod:`ddmr_cli.engine.kernels`)."""
+
+
+#: rows of the controller's array of a block of runs (ddmr_cli.control.base, "Lanes"): none used
+LANE_STATE_ROWS = 1
+
+
+@law
+def lanes_load(p, st, C, l):
+    """No state (ddmr_cli.control.base, "Lanes")."""
+
+
+@law
+def lanes_store(p, st, C, l):
+    """No state."""
+
+
+@inlined_law
+def lanes_command(p, C, L, nb, k):
+    """:func:`command` for lanes ``0 .. nb - 1``."""
+    for l in range(nb):
+        L[UC_R, l], L[UC_L, l] = p.voltage[0], p.voltage[1]
+        L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l] = L[WD_R, l] - L[W_R, l], L[WD_L, l] - L[W_L, l]
+
+
+@law
+def lanes_update(p, C, L, nb):
+    """No state."""
 
 
 class OpenLoop(WheelController):

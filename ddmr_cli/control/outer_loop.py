@@ -43,7 +43,13 @@ class Kanayama(NamedTuple):
 @law
 def kanayama(gains, e_x, e_y, e_theta, v_r, omega_r):
     """Kanayama's law (docs/model.md §3): ``v_d = v_r cos e_th + k_x e_x`` [m/s],
-    ``omega_d = omega_r + v_r (k_y e_y + k_th sin e_th)`` [rad/s]."""
-    v_d = v_r * math.cos(e_theta) + gains.k_x * e_x
-    omega_d = omega_r + v_r * (gains.k_y * e_y + gains.k_theta * math.sin(e_theta))
+    ``omega_d = omega_r + v_r (k_y e_y + k_th sin e_th)`` [rad/s] (:func:`kanayama_of` with libm's cosine and sine)."""
+    return kanayama_of(gains, e_x, e_y, math.cos(e_theta), math.sin(e_theta), v_r, omega_r)
+
+
+@law
+def kanayama_of(gains, e_x, e_y, cos_e_theta, sin_e_theta, v_r, omega_r):
+    """Kanayama's law given the heading error's cosine and sine (:mod:`ddmr_cli.model.kinematics` says whose)."""
+    v_d = v_r * cos_e_theta + gains.k_x * e_x
+    omega_d = omega_r + v_r * (gains.k_y * e_y + gains.k_theta * sin_e_theta)
     return v_d, omega_d

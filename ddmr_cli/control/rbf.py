@@ -63,6 +63,12 @@ def exponent(p, j, w_R, w_L):
 
 
 @law
+def activation(p, j, w_R, w_L):
+    """(27) for neuron ``j``: ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))`` (:func:`basis`)."""
+    return exp_neg(exponent(p, j, w_R, w_L))
+
+
+@law
 def basis(p, phi, w_R, w_L):
     """(27): ``phi_j = exp(-||x - c_j||^2 / (2 sigma^2))`` for ``x = (w_R, w_L)``, ``c_j = (c_j, c_j)``, into ``phi``.
 
@@ -71,7 +77,7 @@ def basis(p, phi, w_R, w_L):
     :data:`~ddmr_cli.model.elementary.EXP_ZERO`; at the paper's 33 rad/s, 3 of the 10) costs what the others cost,
     where libm's exp takes a slow underflow path."""
     for j in range(p.n_neurons):
-        phi[j] = exp_neg(exponent(p, j, w_R, w_L))
+        phi[j] = activation(p, j, w_R, w_L)
 
 
 @law
@@ -88,12 +94,24 @@ def estimate(p, weights, phi, w_R, w_L):
 
 
 @law
+def learning_steps(p, dt, s_R, s_L):
+    """The factors of (25)'s Euler step per wheel, ``dt gamma s``."""
+    return (dt * p.learning_rate[0]) * s_R, (dt * p.learning_rate[1]) * s_L
+
+
+@law
+def learned(weight, step, phi_j):
+    """(25) for one weight: ``w_j - dt gamma s phi_j`` (``step`` from :func:`learning_steps`)."""
+    return weight - step * phi_j
+
+
+@law
 def update(p, dt, weights, phi, s_R, s_L):
     """(25), one Euler step: ``W <- W - dt gamma Phi(x) s^T`` for the ``n`` neurons."""
-    step_R, step_L = (dt * p.learning_rate[0]) * s_R, (dt * p.learning_rate[1]) * s_L
+    step_R, step_L = learning_steps(p, dt, s_R, s_L)
     for j in range(p.n_neurons):
-        weights[0, j] -= step_R * phi[j]
-        weights[1, j] -= step_L * phi[j]
+        weights[0, j] = learned(weights[0, j], step_R, phi[j])
+        weights[1, j] = learned(weights[1, j], step_L, phi[j])
 
 
 class RBFNetworkObserver:

@@ -17,10 +17,11 @@ import sys
 from typing import NamedTuple
 
 
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import inlined_law, law
 from ddmr_cli.control import ndo, rbf
 from ddmr_cli.checks import compact, non_negative, one_of, per_wheel, positive
-from ddmr_cli.control.base import ESTIMATE, SURFACE, Diagnostic, StepRate, WheelController
+from ddmr_cli.control.base import (DIAGNOSTICS, ESTIMATE, SURFACE, UC_L, UC_R, U_L, U_R, W_L, W_R, WD_L, WD_R, WDD_L,
+                                   WDD_R, Diagnostic, StepRate, WheelController)
 from ddmr_cli.model.dynamics import sign, voltage_for
 from ddmr_cli.model.robot import NominalModel
 
@@ -54,6 +55,12 @@ def surface(e, error_integral, lam, integral_surface):
 
 
 @law
+def integrated(p, error_integral, e):
+    """The integral surface's ``int e`` one Euler step on [rad]."""
+    return error_integral + p.dt * e
+
+
+@law
 def switching(s, boundary_layer, kind):
     """``sw(s / Phi)`` of (15): ``sign(s)``, ``sat(s / Phi)`` or ``tanh(s / Phi)``."""
     if kind == SIGN:
@@ -75,6 +82,15 @@ def start(p, st, w0_R, w0_L):
 
 
 @law
+def sliding_voltage(p, kind, s_R, s_L, linear_R, linear_L, wdd_R, wdd_L, gain_R, gain_L, d_hat_R, d_hat_L, w_R, w_L):
+    """(17) given the surface, its linear term and the observers' summed estimate ``d_hat``:
+    ``u = g^-1 (w_d' - f(w) + linear + K sw(s/Phi) - d_hat)`` [V] (``kind``: the switching function)."""
+    a_R = wdd_R + linear_R + gain_R * switching(s_R, p.boundary_layer, kind) - d_hat_R
+    a_L = wdd_L + linear_L + gain_L * switching(s_L, p.boundary_layer, kind) - d_hat_L
+    return voltage_for(p.nominal, a_R, a_L, w_R, w_L)
+
+
+@law
 def sliding_command(p, st, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L, gain_R, gain_L):
     """(17) with the switching gains ``K`` given per wheel [rad/s^2] (constant here, adapted in
     :mod:`ddmr_cli.control.adaptive_smc`): ``u = g^-1 (w_d' - f(w) + linear + K sw(s/Phi) - d_hat)``."""
@@ -85,9 +101,8 @@ def sliding_command(p, st, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L, gain_R, gain_L):
         dndo_R, dndo_L = ndo.estimate(p.ndo, st["z"], w_R, w_L)
     if p.has_nn:
         dnn_R, dnn_L = rbf.estimate(p.nn, st["weights"], st["phi"], w_R, w_L)
-    a_R = wdd_R + linear_R + gain_R * switching(s_R, p.boundary_layer, p.switching) - (dndo_R + dnn_R)
-    a_L = wdd_L + linear_L + gain_L * switching(s_L, p.boundary_layer, p.switching) - (dndo_L + dnn_L)
-    u_R, u_L = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
+    u_R, u_L = sliding_voltage(p, p.switching, s_R, s_L, linear_R, linear_L, wdd_R, wdd_L, gain_R, gain_L,
+                               dndo_R + dnn_R, dndo_L + dnn_L, w_R, w_L)
     diagnostics = st["diagnostics"]  # rows: s, then NDO and NN when present (SMC.diagnostics)
     diagnostics[0, 0], diagnostics[0, 1] = s_R, s_L
     if p.has_ndo:
@@ -108,13 +123,108 @@ def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
 def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     """Advance the error integral (integral surface), the NDO (22) and the network (25) by one step."""
     if p.integral_surface:
-        st["error_integral"][0] += p.dt * (wd_R - w_R)
-        st["error_integral"][1] += p.dt * (wd_L - w_L)
+        st["error_integral"][0] = integrated(p, st["error_integral"][0], wd_R - w_R)
+        st["error_integral"][1] = integrated(p, st["error_integral"][1], wd_L - w_L)
     diagnostics = st["diagnostics"]
     if p.has_ndo:
         ndo.update(p.ndo, p.nominal, p.dt, st["z"], diagnostics[1, 0], diagnostics[1, 1], w_R, w_L, u_R, u_L)
     if p.has_nn:
         rbf.update(p.nn, p.dt, st["weights"], st["phi"], diagnostics[0, 0], diagnostics[0, 1])
+
+
+# --- lanes (ddmr_cli.control.base, "Lanes"): the laws above over a block of runs ----------------------------------
+#: rows of the controller's array C of a block: the error integral, the NDO's state, the observers' estimates this
+#: step, then the network's weights (row NEURONS + 2 j + wheel) and basis (row PHI + j), for up to LANE_NEURONS
+EI_R, EI_L, Z_R, Z_L, DNDO_R, DNDO_L, DNN_R, DNN_L = range(8)
+NEURONS = 8
+#: the most neurons a network runs with in lanes (the sensitivity study's largest is 20)
+LANE_NEURONS = 32
+PHI = NEURONS + 2 * LANE_NEURONS
+#: rows of C (ddmr_cli.control.base, "Lanes")
+LANE_STATE_ROWS = PHI + LANE_NEURONS
+
+
+@law
+def lanes_load(p, st, C, l):
+    """Run record ``st`` into lane ``l`` of ``C``."""
+    C[EI_R, l], C[EI_L, l] = st["error_integral"][0], st["error_integral"][1]
+    C[Z_R, l], C[Z_L, l] = st["z"][0], st["z"][1]
+    for j in range(p.nn.n_neurons if p.has_nn else 0):
+        C[NEURONS + 2 * j, l], C[NEURONS + 2 * j + 1, l] = st["weights"][0, j], st["weights"][1, j]
+        C[PHI + j, l] = st["phi"][j]
+
+
+@law
+def lanes_store(p, st, C, l):
+    """Lane ``l`` of ``C`` back into run record ``st``."""
+    st["error_integral"][0], st["error_integral"][1] = C[EI_R, l], C[EI_L, l]
+    st["z"][0], st["z"][1] = C[Z_R, l], C[Z_L, l]
+    for j in range(p.nn.n_neurons if p.has_nn else 0):
+        st["weights"][0, j], st["weights"][1, j] = C[NEURONS + 2 * j, l], C[NEURONS + 2 * j + 1, l]
+        st["phi"][j] = C[PHI + j, l]
+
+
+@inlined_law
+def _lanes_sliding(p, C, L, nb, kind):
+    """:func:`sliding_command` for every lane, the switching function ``kind`` a constant of the loop."""
+    for l in range(nb):
+        w_R, w_L = L[W_R, l], L[W_L, l]
+        s_R, linear_R = surface(L[WD_R, l] - w_R, C[EI_R, l], p.lam[0], p.integral_surface)
+        s_L, linear_L = surface(L[WD_L, l] - w_L, C[EI_L, l], p.lam[1], p.integral_surface)
+        L[UC_R, l], L[UC_L, l] = sliding_voltage(p, kind, s_R, s_L, linear_R, linear_L, L[WDD_R, l], L[WDD_L, l],
+                                                 p.switching_gain[0], p.switching_gain[1],
+                                                 C[DNDO_R, l] + C[DNN_R, l], C[DNDO_L, l] + C[DNN_L, l], w_R, w_L)
+        L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l] = s_R, s_L
+
+
+@inlined_law
+def lanes_command(p, C, L, nb, k):
+    """:func:`command` for lanes ``0 .. nb - 1``: the NDO's estimate (21), the network's (24) a neuron at a time
+    over the lanes, then (17)."""
+    for l in range(nb):
+        C[DNDO_R, l], C[DNDO_L, l], C[DNN_R, l], C[DNN_L, l] = 0.0, 0.0, 0.0, 0.0
+    if p.has_ndo:
+        for l in range(nb):
+            C[DNDO_R, l], C[DNDO_L, l] = ndo.estimate_of(p.ndo, C[Z_R, l], C[Z_L, l], L[W_R, l], L[W_L, l])
+    if p.has_nn:
+        for j in range(p.nn.n_neurons):
+            for l in range(nb):
+                phi = rbf.activation(p.nn, j, L[W_R, l], L[W_L, l])
+                C[PHI + j, l] = phi
+                C[DNN_R, l] += C[NEURONS + 2 * j, l] * phi
+                C[DNN_L, l] += C[NEURONS + 2 * j + 1, l] * phi
+    if p.switching == SAT:
+        _lanes_sliding(p, C, L, nb, SAT)
+    elif p.switching == SIGN:
+        _lanes_sliding(p, C, L, nb, SIGN)
+    else:
+        _lanes_sliding(p, C, L, nb, TANH)
+    if p.has_ndo:  # the channels after s: the NDO's, then the network's
+        for l in range(nb):
+            L[DIAGNOSTICS + 2, l], L[DIAGNOSTICS + 3, l] = C[DNDO_R, l], C[DNDO_L, l]
+    if p.has_nn:
+        row = DIAGNOSTICS + (4 if p.has_ndo else 2)
+        for l in range(nb):
+            L[row, l], L[row + 1, l] = C[DNN_R, l], C[DNN_L, l]
+
+
+@inlined_law
+def lanes_update(p, C, L, nb):
+    """:func:`update` for lanes ``0 .. nb - 1``: the error integral, the NDO (22), the network (25)."""
+    if p.integral_surface:
+        for l in range(nb):
+            C[EI_R, l] = integrated(p, C[EI_R, l], L[WD_R, l] - L[W_R, l])
+            C[EI_L, l] = integrated(p, C[EI_L, l], L[WD_L, l] - L[W_L, l])
+    if p.has_ndo:
+        for l in range(nb):
+            C[Z_R, l], C[Z_L, l] = ndo.next_state(p.ndo, p.nominal, p.dt, C[Z_R, l], C[Z_L, l], C[DNDO_R, l],
+                                                  C[DNDO_L, l], L[W_R, l], L[W_L, l], L[U_R, l], L[U_L, l])
+    if p.has_nn:
+        for j in range(p.nn.n_neurons):
+            for l in range(nb):
+                step_R, step_L = rbf.learning_steps(p.nn, p.dt, L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l])
+                C[NEURONS + 2 * j, l] = rbf.learned(C[NEURONS + 2 * j, l], step_R, C[PHI + j, l])
+                C[NEURONS + 2 * j + 1, l] = rbf.learned(C[NEURONS + 2 * j + 1, l], step_L, C[PHI + j, l])
 
 
 class SMC(WheelController):
@@ -165,6 +275,10 @@ class SMC(WheelController):
         1 to 16)."""
         n = rbf.capacity(self.nn.n_neurons) if self.nn is not None else 1
         return [("error_integral", "f8", 2), ("z", "f8", 2), ("weights", "f8", (2, n)), ("phi", "f8", n)]
+
+    def runs_in_lanes(self) -> bool:
+        """As every controller with lanes laws, for a network of at most :data:`LANE_NEURONS` neurons."""
+        return super().runs_in_lanes() and (self.nn is None or self.nn.n_neurons <= LANE_NEURONS)
 
     def diagnostics(self):
         """The sliding variable, then the NDO's and the network's estimates of d when present (the rows

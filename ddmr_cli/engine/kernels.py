@@ -6,8 +6,8 @@ module. Its copy for a controller is the template's source with the four imports
 to a cache directory and imported; numba caches the copy's compiled
 code on disk beside it, and later processes load it instead of compiling. Without numba the same copy runs as
 Python. Another template of the same kind, whose laws come from the same slot, is copied the same way
-(:func:`copy_for`, :func:`compiled_copy`): the loop that times a controller's laws alone
-(:mod:`ddmr_cli.bench.control_loop`).
+(:func:`copy_for`, :func:`compiled_copy`): the loop by blocks of runs (:mod:`ddmr_cli.engine.lanes`) and the loop
+that times a controller's laws alone (:mod:`ddmr_cli.bench.control_loop`).
 
 The copy's file name is its identity: a hash of everything it was compiled for (:func:`stepper_for`):
 

@@ -85,18 +85,15 @@ def block_key(zone_segment, phase_segment, steady, steady_zone, steady_phase):
 
 
 @law
-def flush(sums, r, acc):
-    """Add the run's block (the sums of its steps since the segments last changed) to every segment it counts in
-    (whole run, zone, phase, and their steady twins at segment index + the number of segments), and empty it."""
-    key = acc["block_key"]
-    if key < 0:
-        return
+def add_block(sums, r, key, block):
+    """Add a block of sums (``block``, one per column of :data:`SUMS`, the steps since run ``r``'s segments last
+    changed, their :func:`block_key` ``key``) to every segment it counts in (whole run, zone, phase, and their steady
+    twins at segment index + the number of segments), and empty it."""
     n = sums.shape[1] // 2
     steady_phase, key = key % 2, key // 2
     steady_zone, key = key % 2, key // 2
     steady, key = key % 2, key // 2
     p, z = key % 4096, key // 4096
-    block = acc["block"]
     for c in range(block.shape[0]):
         v = block[c]
         sums[r, 0, c] += v
@@ -109,7 +106,98 @@ def flush(sums, r, acc):
         if steady_phase:
             sums[r, n + p, c] += v
         block[c] = 0.0
+
+
+@law
+def flush(sums, r, acc):
+    """Add the run's block (the sums of its steps since the segments last changed) to its segments
+    (:func:`add_block`), and empty it."""
+    key = acc["block_key"]
+    if key < 0:
+        return
+    add_block(sums, r, key, acc["block"])
     acc["block_key"] = -1
+
+
+@law
+def segment_key(k, zone_segment, phase_segment, zone_now, zone_entry, phase_now, phase_entry, settle_steps,
+                zone_settle_steps):
+    """Step ``k``'s block key (:func:`block_key`) in zone segment ``zone_segment`` and phase segment
+    ``phase_segment``, given the segments the run was in (``zone_now``, ``phase_now``) and the steps it entered
+    them: ``(key, zone_entry, phase_entry)`` after the step. A step is steady for the whole run from step
+    ``settle_steps`` on, and for its zone (phase) once the run has also been ``zone_settle_steps`` in it."""
+    zone_entry = k if zone_segment != zone_now else zone_entry
+    phase_entry = k if phase_segment != phase_now else phase_entry
+    ss = k >= settle_steps
+    sz = ss and k - zone_entry >= zone_settle_steps
+    sp = ss and k - phase_entry >= zone_settle_steps
+    return block_key(zone_segment, phase_segment, ss, sz, sp), zone_entry, phase_entry
+
+
+@law
+def step_terms(t, dev, e_x, e_y, e_theta, saturated, u_R, u_L, u_prev_R, u_prev_L, w_R, w_L, dtilde_R, dtilde_L,
+               dtilde_ndo_R, dtilde_ndo_L, s_R, s_L, hp_out_R, hp_out_L, k_e, r_a):
+    """One step's term of every sum of :data:`SUMS`, in its order (docs/model.md §7): the step's count, deviation,
+    its square and its time-weighted value, the absolute pose errors, the saturation flag, the voltage's change,
+    square, electrical power ``u (u - k_e w) / R_a``, the absolute estimation errors ``d - d_hat`` (all estimates,
+    the NDO's), ``|s|``, ``u``, the high-passed voltage's square and ``|u|``."""
+    return (1.0, dev, dev * dev, t * dev, abs(e_x), abs(e_y), abs(e_theta), 1.0 if saturated else 0.0,
+            abs(u_R - u_prev_R), abs(u_L - u_prev_L), u_R * u_R, u_L * u_L,
+            u_R * (u_R - k_e * w_R) / r_a, u_L * (u_L - k_e * w_L) / r_a,
+            abs(dtilde_R), abs(dtilde_L), abs(dtilde_ndo_R), abs(dtilde_ndo_L), abs(s_R), abs(s_L), u_R, u_L,
+            hp_out_R * hp_out_R, hp_out_L * hp_out_L, abs(u_R), abs(u_L))
+
+
+@law
+def highpass(hp, state0, state1, u):
+    """One step of the biquad ``hp`` (direct form II transposed, as ``scipy.signal.sosfilt``) on input ``u``:
+    ``(y, state0, state1)`` after it."""
+    y = hp[0] * u + state0
+    return y, hp[1] * u - hp[4] * y + state1, hp[2] * u - hp[5] * y
+
+
+@law
+def estimation_error(d, diagnostics, members, wheel):
+    """``d`` less the estimates of the channels ``members`` lists (then -1) of ``diagnostics`` (one wheel)."""
+    dtilde = d
+    for m in range(members.shape[0]):
+        c = members[m]
+        if c < 0:
+            break
+        dtilde -= diagnostics[c, wheel]
+    return dtilde
+
+
+@law
+def add_terms(block, terms):
+    """A step's terms (:func:`step_terms`) added to a run's block of sums, written out (a loop over a tuple's entries
+    indexes it at run time: 1.5x the step loop's time)."""
+    block[0] += terms[0]
+    block[1] += terms[1]
+    block[2] += terms[2]
+    block[3] += terms[3]
+    block[4] += terms[4]
+    block[5] += terms[5]
+    block[6] += terms[6]
+    block[7] += terms[7]
+    block[8] += terms[8]
+    block[9] += terms[9]
+    block[10] += terms[10]
+    block[11] += terms[11]
+    block[12] += terms[12]
+    block[13] += terms[13]
+    block[14] += terms[14]
+    block[15] += terms[15]
+    block[16] += terms[16]
+    block[17] += terms[17]
+    block[18] += terms[18]
+    block[19] += terms[19]
+    block[20] += terms[20]
+    block[21] += terms[21]
+    block[22] += terms[22]
+    block[23] += terms[23]
+    block[24] += terms[24]
+    block[25] += terms[25]
 
 
 @inlined_law
@@ -117,10 +205,9 @@ def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, p
                u_R, u_L, w_R, w_L, s_R, s_L, d_R, d_L, diagnostics, estimation, k_e, r_a, hp, hp_zi):
     """Add step ``k`` of run ``r`` to ``sums[r, segment, column]`` (columns: :data:`SUMS`; docs/model.md §7).
 
-    A step is steady for the whole run from step ``settle_steps`` on, and for its zone (phase) once the run has
-    also been ``zone_settle_steps`` in that zone (phase). ``hp`` is one biquad ``[b0, b1, b2, a0, a1, a2]``
-    (direct form II transposed, as ``scipy.signal.sosfilt``), its state ``acc["hp_state"]`` started at
-    ``hp_zi * u`` on the first step (no transient); ``acc["u_prev"]`` is the last voltage, for the total variation.
+    The step's segments and steadiness are :func:`segment_key`'s, its terms :func:`step_terms`. ``hp`` is one
+    biquad ``[b0, b1, b2, a0, a1, a2]`` (:func:`highpass`), its state ``acc["hp_state"]`` started at ``hp_zi * u``
+    on the first step (no transient); ``acc["u_prev"]`` is the last voltage, for the total variation.
     ``diagnostics[c, wheel]`` are the controller's channels, ``estimation[i]`` the channels whose estimates count in
     estimation metric ``i`` (then -1; :func:`estimation_membership`; :data:`ESTIMATION_METRICS`: all estimates,
     the NDO alone).
@@ -130,51 +217,26 @@ def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, p
         acc["hp_state"][0, 0], acc["hp_state"][0, 1] = hp_zi[0] * u_R, hp_zi[1] * u_R
         acc["hp_state"][1, 0], acc["hp_state"][1, 1] = hp_zi[0] * u_L, hp_zi[1] * u_L
         acc["started"] = True
-    if zone_segment != acc["zone_segment"]:
-        acc["zone_segment"], acc["zone_entry"] = zone_segment, k
-    if phase_segment != acc["phase_segment"]:
-        acc["phase_segment"], acc["phase_entry"] = phase_segment, k
-    ss = k >= settle_steps
-    sz = ss and k - acc["zone_entry"] >= zone_settle_steps
-    sp = ss and k - acc["phase_entry"] >= zone_settle_steps
-    key = block_key(zone_segment, phase_segment, ss, sz, sp)
+    key, acc["zone_entry"], acc["phase_entry"] = segment_key(
+        k, zone_segment, phase_segment, acc["zone_segment"], acc["zone_entry"], acc["phase_segment"],
+        acc["phase_entry"], settle_steps, zone_settle_steps)
+    acc["zone_segment"], acc["phase_segment"] = zone_segment, phase_segment
     if key != acc["block_key"]:
         flush(sums, r, acc)
         acc["block_key"] = key
-    b = acc["block"]
-    b[0] += 1.0
-    b[1] += dev
-    b[2] += dev * dev
-    b[3] += t * dev
-    b[4] += abs(e_x)
-    b[5] += abs(e_y)
-    b[6] += abs(e_theta)
-    b[7] += 1.0 if saturated else 0.0
-    for w in range(2):
-        u = u_R if w == 0 else u_L
-        b[8 + w] += abs(u - acc["u_prev"][w])
-        acc["u_prev"][w] = u
-        b[10 + w] += u * u
-        b[12 + w] += u * (u - k_e * (w_R if w == 0 else w_L)) / r_a
-        d = d_R if w == 0 else d_L
-        for i in range(estimation.shape[0]):  # one pair of abs_dtilde columns per ESTIMATION_METRICS entry
-            dtilde = d
-            for m in range(estimation.shape[1]):
-                c = estimation[i, m]
-                if c < 0:
-                    break
-                dtilde -= diagnostics[c, w]
-            b[14 + 2 * i + w] += abs(dtilde)
-        b[18 + w] += abs(s_R if w == 0 else s_L)
-        b[20 + w] += u
-        y = hp[0] * u + acc["hp_state"][w, 0]
-        acc["hp_state"][w, 0] = hp[1] * u - hp[4] * y + acc["hp_state"][w, 1]
-        acc["hp_state"][w, 1] = hp[2] * u - hp[5] * y
-        b[22 + w] += y * y
-        b[24 + w] += abs(u)
+    hs = acc["hp_state"]
+    y_R, hs[0, 0], hs[0, 1] = highpass(hp, hs[0, 0], hs[0, 1], u_R)
+    y_L, hs[1, 0], hs[1, 1] = highpass(hp, hs[1, 0], hs[1, 1], u_L)
+    terms = step_terms(t, dev, e_x, e_y, e_theta, saturated, u_R, u_L, acc["u_prev"][0], acc["u_prev"][1], w_R, w_L,
+                       estimation_error(d_R, diagnostics, estimation[0], 0),
+                       estimation_error(d_L, diagnostics, estimation[0], 1),
+                       estimation_error(d_R, diagnostics, estimation[1], 0),
+                       estimation_error(d_L, diagnostics, estimation[1], 1), s_R, s_L, y_R, y_L, k_e, r_a)
+    acc["u_prev"][0], acc["u_prev"][1] = u_R, u_L
+    add_terms(acc["block"], terms)
     if dev > acc["dev_max"]:
         acc["dev_max"] = dev
-    if ss and dev > acc["dev_max_ss"]:
+    if k >= settle_steps and dev > acc["dev_max_ss"]:
         acc["dev_max_ss"] = dev
     acc["dev_final"] = dev
 

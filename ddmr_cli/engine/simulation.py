@@ -24,7 +24,9 @@ from ddmr_cli.control.base import KINDS, STABILITY_LIMIT, SURFACE, WheelControll
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
-from ddmr_cli.engine.kernels import check_single_signature, compiled_external_step, compiled_run_chunk
+from ddmr_cli.engine import lanes as lane_loop
+from ddmr_cli.engine.kernels import (check_single_signature, compiled_copy, compiled_external_step,
+                                     compiled_run_chunk)
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
 from ddmr_cli.engine.pipeline import run_chunks
 from ddmr_cli.model.noise import NoiseStreams, SensorNoise, ou_coefficients
@@ -357,10 +359,21 @@ class _Batch:
             self.sensor_noise.next_chunk(n, xs, block)
 
 
-def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, progress, compiling) -> None:
+def in_lanes(sim: Simulation) -> bool:
+    """Whether the runs step by blocks, the runs as a vectorised inner axis (:mod:`ddmr_cli.engine.lanes`): the
+    compiled loop, the wheel plant, a controller with lanes laws (:meth:`WheelController.runs_in_lanes`), the ideal
+    sensor and actuator, control at every plant step, explicit Euler: the paper's loop."""
+    act = sim.actuator
+    return (jit_enabled() and sim.plant is None and sim.controller.runs_in_lanes() and sim.sensor.kind == "ideal"
+            and not (act.delay or act.lag or act.pwm_bits) and sim.control_steps == 1 and sim.integrator == "euler")
+
+
+def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, progress, compiling,
+                  in_lanes: bool = False) -> None:
     """The wheel plant: every run advanced a chunk of steps at a time by the compiled loop, blocks of runs in
     ``n_threads`` threads, each block on to its next chunk as soon as it is free to
-    (:mod:`ddmr_cli.engine.pipeline`)."""
+    (:mod:`ddmr_cli.engine.pipeline`); ``in_lanes``: :mod:`ddmr_cli.engine.lanes`'s loop, else
+    :mod:`ddmr_cli.engine.stepper`'s."""
     n_runs = len(b.runs)
     streams = b.noise.streams()
     blocks = blocks_of(n_runs, n_threads)
@@ -376,7 +389,10 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
     if not plan:
         return
     # one compiled copy per complete call signature (kernels.py), chosen before the first chunk
-    loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
+    if not in_lanes:
+        loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
+    else:
+        loop = compiled_copy(lane_loop.__name__, law_module, "run_chunk", args[0] + (0, n_runs), compiling)
 
     def step(i: int, block: int) -> None:  # this block's sensor normals of chunk i, then its steps
         b.draw(plan[i][1], sensor[i], blocks[block])
@@ -464,7 +480,7 @@ def _take_state(runs: np.ndarray, plant: ExternalPlant, n_runs: int) -> None:
 
 def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] = (),
              progress: Callable[[int, int], None] | None = None, threads: int = 0, bands: bool = True,
-             compiling: Callable[[], None] | None = None) -> SimulationResult:
+             compiling: Callable[[], None] | None = None, lanes: bool | None = None) -> SimulationResult:
     """Run one batch: one run per seed, all advanced together.
 
     Parameters
@@ -484,6 +500,9 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
         (:mod:`ddmr_cli.engine.bands`; ``SimulationResult.bands``).
     compiling : callable(), optional
         Called just before the step loop is compiled (no compiled copy for this controller and call is cached).
+    lanes : bool, optional
+        Step the runs by blocks, vectorised (:mod:`ddmr_cli.engine.lanes`), or one at a time
+        (:mod:`ddmr_cli.engine.stepper`); by default by blocks wherever :func:`in_lanes`. The same numbers.
 
     Returns
     -------
@@ -526,7 +545,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     batch = _Batch(world, plant, params, runs, delay_lines(n_runs, world.actuator.delay_steps), controller_state,
                    acc.sums, accumulators, series, slot, noise, sensor_noise, xs, band_acc, chunk, band_slots)
     if sim.plant is None:
-        _run_compiled(batch, controller.laws.__name__, n_steps, n_threads, progress, compiling)
+        _run_compiled(batch, controller.laws.__name__, n_steps, n_threads, progress, compiling,
+                      in_lanes(sim) if lanes is None else lanes)
     else:
         _run_external(batch, controller.laws.__name__, sim.plant(sim, threads), seeds, n_steps, progress,
                       compiling)

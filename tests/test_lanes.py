@@ -1,0 +1,92 @@
+"""The step loop by blocks of runs (ddmr_cli.engine.lanes) against the run-at-a-time loop (ddmr_cli.engine.stepper).
+
+The two loops run the same laws in the same order, one run at a time or a block of runs at a time, so every metric,
+kept series, seed band and divergence of a run must agree. On one machine they agree to the bit (libm's sine and
+cosine in both, no fast-math flags); the tolerance below is the regression test's (a last-bit difference on another
+CPU grows through the sliding mode's switching to about 1e-12-1e-10 over these short runs), far below any wiring
+mistake (a misplaced row moves a metric by percent).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ddmr_cli import paper_simulation, simulate
+from ddmr_cli.compiled import jit_enabled
+from ddmr_cli.engine.lanes import LANES
+from ddmr_cli.engine.simulation import in_lanes
+
+pytestmark = pytest.mark.skipif(not jit_enabled(), reason="the lanes loop runs compiled only (numba missing or "
+                                                          "NUMBA_DISABLE_JIT set)")
+
+RTOL, ATOL = 1e-9, 1e-12
+
+
+def _both(sim, seeds, **kwargs):
+    return (simulate(sim, seeds, threads=1, lanes=False, **kwargs),
+            simulate(sim, seeds, threads=1, lanes=True, **kwargs))
+
+
+def _assert_same(a, b):
+    assert a.metrics.keys() == b.metrics.keys()
+    for name in a.metrics:
+        np.testing.assert_allclose(b.metrics[name], a.metrics[name], rtol=RTOL, atol=ATOL, err_msg=name)
+    np.testing.assert_array_equal(b.diverged, a.diverged)
+    np.testing.assert_allclose(b.divergence_time, a.divergence_time, rtol=RTOL, atol=ATOL)
+    assert a.series.keys() == b.series.keys()
+    for seed in a.series:
+        for channel in a.series[seed]:
+            np.testing.assert_allclose(b.series[seed][channel], a.series[seed][channel], rtol=RTOL, atol=ATOL,
+                                       err_msg=f"seed {seed}, {channel}")
+    assert a.bands.keys() == b.bands.keys()
+    for name in a.bands:
+        np.testing.assert_allclose(np.asarray(b.bands[name]), np.asarray(a.bands[name]), rtol=RTOL, atol=ATOL,
+                                   err_msg=name)
+
+
+@pytest.mark.parametrize("overrides", [
+    ["controller=smc_ndo"],
+    ["controller=smc_ndo_nno"],
+    ["controller=smc"],
+    ["controller=smc_ndo", "scenario=paper_2"],  # phases by distance, damping uncertainty
+    ["controller=smc_ndo_nno", "scenario=paper_2", "scenario.phase_clock=time"],
+    ["controller=smc", "controller.switching=tanh", "controller.surface=integral"],
+    ["controller=smc_ndo", "controller.switching=sign"],
+    ["controller=open_loop"],
+], ids=lambda o: " ".join(o))
+def test_lanes_give_the_run_at_a_time_numbers(overrides):
+    sim = paper_simulation(*overrides, "simulation.duration=2.5")
+    assert in_lanes(sim)
+    a, b = _both(sim, range(LANES + 7), keep_series=[0, LANES + 3])  # a full block and a partial one
+    _assert_same(a, b)
+
+
+def test_lanes_agree_on_diverging_runs():
+    free = simulate(paper_simulation("controller=smc_ndo", "simulation.duration=1.0"), range(12), threads=1)
+    bound = float(np.median(free.metric("deviation_max")))  # some runs, not all, go past it
+    sim = paper_simulation("controller=smc_ndo", "simulation.duration=1.0", f"simulation.divergence_bound={bound}")
+    a, b = _both(sim, range(12))
+    assert 0 < a.diverged.sum() < 12
+    _assert_same(a, b)
+
+
+def test_a_seed_is_the_same_alone_and_in_any_lane():
+    sim = paper_simulation("controller=smc_ndo_nno", "simulation.duration=1.0")
+    batch = simulate(sim, range(2 * LANES + 5), threads=2)
+    for position in (0, LANES - 1, LANES, 2 * LANES + 4):
+        alone = simulate(sim, [position], threads=1)
+        for name in batch.metrics:
+            np.testing.assert_allclose(alone.metrics[name][0], batch.metrics[name][position], rtol=1e-15, atol=0,
+                                       err_msg=f"{name}, seed {position}")
+
+
+@pytest.mark.parametrize("overrides", [
+    ["controller=pid"],  # no lanes laws
+    ["controller=smc_ndo", "sensor=encoder"],
+    ["controller=smc_ndo", "actuator.delay=0.005"],
+    ["controller=smc_ndo", "simulation.integrator=rk4"],
+    ["controller=smc_ndo", "control.rate=500"],
+], ids=lambda o: " ".join(o))
+def test_runs_step_one_at_a_time_outside_the_paper_loop(overrides):
+    assert not in_lanes(paper_simulation(*overrides))
