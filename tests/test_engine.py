@@ -107,20 +107,23 @@ def test_thread_count_does_not_change_the_numbers():
         assert np.array_equal(values, three.series[5][channel], equal_nan=True), channel
 
 
+@pytest.mark.parametrize("multiple", [1, 32])
 @pytest.mark.parametrize("n_runs, n_threads", [(1, 1), (7, 1), (7, 2), (64, 2), (1000, 2), (1000, 3), (5, 8)])
-def test_the_threads_blocks_cover_the_runs_once_in_order(n_runs, n_threads):
+def test_the_threads_blocks_cover_the_runs_once_in_order(n_runs, n_threads, multiple):
     from ddmr_cli.engine import simulation
 
-    blocks = simulation.blocks_of(n_runs, n_threads)
+    blocks = simulation.blocks_of(n_runs, n_threads, multiple)
     assert blocks[0][0] == 0 and blocks[-1][1] == n_runs
     assert all(end == first for (_, end), (first, _) in zip(blocks, blocks[1:]))
     assert all(end > first for first, end in blocks)
+    assert all((end - first) % multiple == 0 for first, end in blocks[:-1])  # whole blocks of lanes but the last
     if n_threads == 1:
         assert blocks == [(0, n_runs)]
     else:
         assert len(blocks) <= n_threads * simulation.BLOCKS_PER_THREAD
-        assert len(blocks) == n_runs or min(end - first for first, end in blocks) >= min(
-            simulation.MIN_BLOCK_RUNS, n_runs // len(blocks))
+        if multiple == 1:
+            assert len(blocks) == n_runs or min(end - first for first, end in blocks) >= min(
+                simulation.MIN_BLOCK_RUNS, n_runs // len(blocks))
 
 
 def test_several_blocks_per_thread_do_not_change_the_numbers(monkeypatch):
