@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import math
 
-from ddmr_cli.compiled import inlined_law, stack_matrix
+from ddmr_cli import compiled
+from ddmr_cli.compiled import inlined_law
 from ddmr_cli.compiled import law
 from ddmr_cli.engine.controller_slot import LANE_STATE_ROWS as controller_LANE_STATE_ROWS  # controller laws
 from ddmr_cli.engine.controller_slot import lanes_command as controller_lanes_command  # controller laws
@@ -75,11 +76,11 @@ def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, 
     """Advance runs ``first_run .. end_run - 1`` by ``n_steps`` steps from global step ``k0``, a block of
     :data:`LANES` runs at a time (arguments as :func:`ddmr_cli.engine.stepper.run_chunk`'s). The block's rows ``L``
     (:data:`ROWS`, LANES), the controller's ``C`` (its ``LANE_STATE_ROWS``, LANES) and the noise buffer live on
-    the stack (:func:`~ddmr_cli.compiled.stack_matrix`): LLVM then knows that nothing else overlaps them, which it
+    the stack (``compiled.stack_matrix``): LLVM then knows that nothing else overlaps them, which it
     must to vectorise a loop that writes them."""
-    L = stack_matrix(ROWS, LANES)
-    C = stack_matrix(controller_LANE_STATE_ROWS, LANES)
-    XI = stack_matrix(LANES, DRAW_VALUES).reshape((LANES, DRAW_STEPS, 3))
+    L = compiled.stack_matrix(ROWS, LANES)
+    C = compiled.stack_matrix(controller_LANE_STATE_ROWS, LANES)
+    XI = compiled.stack_matrix(LANES, DRAW_VALUES).reshape((LANES, DRAW_STEPS, 3))
     for first in range(first_run, end_run, LANES):
         nb = min(LANES, end_run - first)
         if k0 == 0:
