@@ -14,7 +14,7 @@ import pytest
 
 from ddmr_cli import paper_simulation, simulate
 from ddmr_cli.compiled import jit_enabled
-from ddmr_cli.engine.lanes import LANES
+from ddmr_cli.control.base import LANES
 from ddmr_cli.engine.simulation import in_lanes
 
 pytestmark = pytest.mark.skipif(not jit_enabled(), reason="the lanes loop runs compiled only (numba missing or "

@@ -190,7 +190,9 @@ def _source_for(law_module: str, template_module: str = _TEMPLATE_MODULE) -> str
     """The template's source with its controller-law imports pointed at ``law_module`` and its ``law`` decorator
     made :func:`~ddmr_cli.compiled.loop_law` (the copy is cached on disk, compiled without reference counting).
     RuntimeError if the template's lines are not in the form this replaces (the step loop has 4 law imports)."""
-    template = inspect.getsource(importlib.import_module(template_module))
+    # the template's text, read, not imported: a module's compiled laws are numba dispatchers, about 110 KB each
+    # made at import, and nothing runs the template itself
+    template = _module_file(template_module).read_text(encoding="utf-8")
     module = importlib.import_module(law_module)
 
     def point(m):  # a law the controller does not define (only ``estimates`` is optional) keeps the slot's default

@@ -36,8 +36,8 @@ from ddmr_cli.engine.controller_slot import lanes_store as controller_lanes_stor
 from ddmr_cli.engine.controller_slot import lanes_update as controller_lanes_update  # controller laws
 from ddmr_cli.engine.controller_slot import start as controller_start  # controller laws
 from ddmr_cli.bit_generators import standard_normals_of
-from ddmr_cli.control.base import (DIAGNOSTICS, LANE_ROWS, SAT_L, SAT_R, UC_L, UC_R, U_L, U_R, W_L, W_R, WD_L, WD_R,
-                                   WDD_L, WDD_R)
+from ddmr_cli.control.base import (DIAGNOSTICS, LANES, LANE_ROWS, SAT_L, SAT_R, UC_L, UC_R, U_L, U_R, W_L, W_R, WD_L,
+                                   WD_R, WDD_L, WDD_R)
 from ddmr_cli.control.outer_loop import kanayama_of
 from ddmr_cli.engine.bands import band_row
 from ddmr_cli.engine.metrics import N_SUMS, add_block, highpass, segment_key, step_terms
@@ -49,9 +49,6 @@ from ddmr_cli.model.kinematics import deviation, frame_error, inverse, wrap_angl
 from ddmr_cli.model.noise import ou_step
 from ddmr_cli.model.scenario import damping_scale
 
-#: runs of a block (the row length of the block's arrays): 32 ran as fast as 64 and 10 % faster than 8 in the
-#: reference kernel's lanes layout (ddmr_cli.bench.reference)
-LANES = 32
 #: steps of noise drawn per block at a time (the buffer: LANES x DRAW_STEPS x 3 normals, 48 KiB)
 DRAW_STEPS = 64
 DRAW_VALUES = DRAW_STEPS * 3
@@ -390,4 +387,4 @@ def keep_step(k, world, st, row, L, l, x_r, y_r, th_r):
            int(L[ZONE, l]), diagnostics, world.recorded)
 
 
-__all__ = ["DRAW_STEPS", "LANES", "ROWS", "run_chunk"]
+__all__ = ["DRAW_STEPS", "ROWS", "run_chunk"]

@@ -20,11 +20,10 @@ import numpy as np
 from ddmr_cli import bit_generators
 from ddmr_cli.compiled import jit_enabled, plain, thread_count
 from ddmr_cli.checks import finite, first_non_finite, non_negative, one_of, per_wheel, positive
-from ddmr_cli.control.base import KINDS, STABILITY_LIMIT, SURFACE, WheelController
+from ddmr_cli.control.base import KINDS, LANES, STABILITY_LIMIT, SURFACE, WheelController
 from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
-from ddmr_cli.engine import lanes as lane_loop
 from ddmr_cli.engine.kernels import (check_single_signature, compiled_copy, compiled_external_step,
                                      compiled_run_chunk)
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
@@ -65,6 +64,8 @@ MIN_BLOCK_RUNS = 32
 #: block steps on into the next chunk while the chunk before is reduced); the chunk budget counts every one, so the
 #: memory is that of one buffer at the same budget (chunks of half the steps)
 BAND_SLOTS = 2
+#: the template of the loop by blocks of runs (ddmr_cli.engine.kernels copies it per controller; never imported here)
+LANES_TEMPLATE = "ddmr_cli.engine.lanes"
 
 
 def chunk_steps(bytes_per_run_step: int, n_runs: int) -> int:
@@ -381,7 +382,7 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
     :mod:`ddmr_cli.engine.stepper`'s."""
     n_runs = len(b.runs)
     streams = b.noise.streams()
-    blocks = blocks_of(n_runs, n_threads, lane_loop.LANES if in_lanes else 1)
+    blocks = blocks_of(n_runs, n_threads, LANES if in_lanes else 1)
     plan = b.plan(n_steps)
     views = b.buffers()
     args, sensor, bands = [], [], []
@@ -397,7 +398,7 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
     if not in_lanes:
         loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
     else:
-        loop = compiled_copy(lane_loop.__name__, law_module, "run_chunk", args[0] + (0, n_runs), compiling)
+        loop = compiled_copy(LANES_TEMPLATE, law_module, "run_chunk", args[0] + (0, n_runs), compiling)
 
     def step(i: int, block: int) -> None:  # this block's sensor normals of chunk i, then its steps
         b.draw(plan[i][1], sensor[i], blocks[block])
