@@ -21,6 +21,7 @@ pytestmark = pytest.mark.skipif(not jit_enabled(), reason="the lanes loop runs c
                                                           "NUMBA_DISABLE_JIT set)")
 
 RTOL, ATOL = 1e-9, 1e-12
+SETTLE = ["metrics.settle_time=0.5", "metrics.zone_settle_time=0.2"]
 
 
 def _both(sim, seeds, **kwargs):
@@ -56,9 +57,11 @@ def _assert_same(a, b):
     ["controller=open_loop"],
 ], ids=lambda o: " ".join(o))
 def test_lanes_give_the_run_at_a_time_numbers(overrides):
-    sim = paper_simulation(*overrides, "simulation.duration=2.5")
+    # settling early, so that the steady-state metrics (and their segments' entries) count steps in 2.5 s
+    sim = paper_simulation(*overrides, "simulation.duration=2.5", *SETTLE)
     assert in_lanes(sim)
     a, b = _both(sim, range(LANES + 7), keep_series=[0, LANES + 3])  # a full block and a partial one
+    assert np.isfinite(a.metrics["deviation_max_ss"][:, 0]).all() and np.isfinite(a.metrics["chattering_ss"][:, 1:]).any()
     _assert_same(a, b)
 
 
