@@ -153,8 +153,7 @@ def _stack_matrix_python(rows, columns):
     :func:`loop_law`), and LLVM knows that no argument points into it, which it must to vectorise a loop that
     writes it. ``rows`` and ``columns`` must be constants of the compiled code (module-level ints). A law calls it
     as ``compiled.stack_matrix`` (the module's attribute): the intrinsic is made when a law that calls it is
-    compiled, not when a process loads compiled code from the disk cache (made at import, it raised a 10,000-seed
-    ``ddmr run``'s peak memory by 4 MB)."""
+    compiled, not when a process loads compiled code from the disk cache."""
     import numpy as np
 
     return np.zeros((rows, columns))
