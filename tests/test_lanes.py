@@ -92,4 +92,7 @@ def test_a_seed_is_the_same_alone_and_in_any_lane():
     ["controller=smc_ndo", "control.rate=500"],
 ], ids=lambda o: " ".join(o))
 def test_runs_step_one_at_a_time_outside_the_paper_loop(overrides):
-    assert not in_lanes(paper_simulation(*overrides))
+    sim = paper_simulation(*overrides, "simulation.duration=0.05")
+    assert not in_lanes(sim)
+    with pytest.raises(ValueError, match="lanes=True"):
+        simulate(sim, range(2), lanes=True)

@@ -40,7 +40,7 @@ from ddmr_cli.control.base import (DIAGNOSTICS, LANES, LANE_ROWS, SAT_L, SAT_R, 
                                    WD_R, WDD_L, WDD_R)
 from ddmr_cli.control.outer_loop import kanayama_of
 from ddmr_cli.engine.bands import band_row
-from ddmr_cli.engine.metrics import N_SUMS, add_block, highpass, segment_key, step_terms
+from ddmr_cli.engine.metrics import N_SUMS, add_block, flush, highpass, segment_key, step_terms
 from ddmr_cli.engine.results import record
 from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.dynamics import saturate, wheel_acceleration
@@ -100,13 +100,10 @@ def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, 
         store(params, runs, controller_state, accumulators, L, C, first, nb)
         if k0 + n_steps == world.reference.shape[0]:  # the runs' last step: add their open blocks to their segments
             for l in range(nb):
-                acc = accumulators[first + l]
-                if acc["block_key"] >= 0:
-                    add_block(sums, first + l, acc["block_key"], acc["block"])
-                    acc["block_key"] = -1
+                flush(sums, first + l, accumulators[first + l])
 
 
-@law
+@inlined_law
 def load(params, runs, controller_state, accumulators, L, C, first, nb):
     """Runs ``first .. first + nb - 1`` from their records into the block's lanes."""
     for l in range(nb):
@@ -131,7 +128,7 @@ def load(params, runs, controller_state, accumulators, L, C, first, nb):
         controller_lanes_load(params, st, C, l)
 
 
-@law
+@inlined_law
 def store(params, runs, controller_state, accumulators, L, C, first, nb):
     """The block's lanes back into the runs' records (the zero-order hold's fields as this step left them)."""
     for l in range(nb):
@@ -301,7 +298,7 @@ def estimation_errors(estimation, L, nb):
                 L[row + 1, l] -= L[DIAGNOSTICS + 2 * c + 1, l]
 
 
-@law
+@inlined_law
 def surface_of(surface, L, l):
     """The sliding variable of lane ``l`` (the controller's SURFACE channel, row ``surface``; NaN without one,
     ``surface`` -1), branch-free."""
@@ -373,7 +370,7 @@ def add_terms(L, l, terms):
     L[BLOCK + 25, l] += terms[25]
 
 
-@law
+@inlined_law
 def keep_step(k, world, st, row, L, l, x_r, y_r, th_r):
     """Lane ``l``'s step ``k`` into its kept series ``row`` (:func:`ddmr_cli.engine.results.record`), its
     diagnostic channels through its state record's."""

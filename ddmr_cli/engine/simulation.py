@@ -263,7 +263,7 @@ def blocks_of(n_runs: int, n_threads: int, multiple: int = 1) -> list[tuple[int,
     per_thread = min(BLOCKS_PER_THREAD, max(1, n_runs // (n_threads * MIN_BLOCK_RUNS))) if n_threads > 1 else 1
     units = -(-n_runs // multiple)
     blocks = _split(units, min(units, n_threads * per_thread))
-    return [(first * multiple, min(end * multiple, n_runs)) for first, end in blocks if first * multiple < n_runs]
+    return [(first * multiple, min(end * multiple, n_runs)) for first, end in blocks]
 
 
 def _split(n: int, parts: int) -> list[tuple[int, int]]:
@@ -375,14 +375,14 @@ def in_lanes(sim: Simulation) -> bool:
 
 
 def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, progress, compiling,
-                  in_lanes: bool = False) -> None:
+                  by_blocks: bool = False) -> None:
     """The wheel plant: every run advanced a chunk of steps at a time by the compiled loop, blocks of runs in
     ``n_threads`` threads, each block on to its next chunk as soon as it is free to
-    (:mod:`ddmr_cli.engine.pipeline`); ``in_lanes``: :mod:`ddmr_cli.engine.lanes`'s loop, else
+    (:mod:`ddmr_cli.engine.pipeline`); ``by_blocks``: :mod:`ddmr_cli.engine.lanes`'s loop, else
     :mod:`ddmr_cli.engine.stepper`'s."""
     n_runs = len(b.runs)
     streams = b.noise.streams()
-    blocks = blocks_of(n_runs, n_threads, LANES if in_lanes else 1)
+    blocks = blocks_of(n_runs, n_threads, LANES if by_blocks else 1)
     plan = b.plan(n_steps)
     views = b.buffers()
     args, sensor, bands = [], [], []
@@ -395,7 +395,7 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
     if not plan:
         return
     # one compiled copy per complete call signature (kernels.py), chosen before the first chunk
-    if not in_lanes:
+    if not by_blocks:
         loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
     else:
         loop = compiled_copy(LANES_TEMPLATE, law_module, "run_chunk", args[0] + (0, n_runs), compiling)
@@ -509,6 +509,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     lanes : bool, optional
         Step the runs by blocks, vectorised (:mod:`ddmr_cli.engine.lanes`), or one at a time
         (:mod:`ddmr_cli.engine.stepper`); by default by blocks wherever :func:`in_lanes`. The same numbers.
+        ``True`` where :func:`in_lanes` is false raises ValueError (the block loop runs the paper's loop only).
 
     Returns
     -------
@@ -518,6 +519,11 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     if not seeds:
         raise ConfigError("run.n_runs", 0, "must be >= 1")
     sim.validate()
+    by_blocks = in_lanes(sim)
+    if lanes and not by_blocks:
+        raise ValueError("simulate(lanes=True): this configuration does not run by blocks of runs (engine/lanes.py: "
+                         "the compiled paper's loop with a controller's lanes laws only)")
+    by_blocks = by_blocks and lanes is not False
     bit_generators.require_compiled_draws()
     started = time.perf_counter()
     n_runs, n_steps, dt = len(seeds), sim.n_steps, float(sim.dt)
@@ -551,8 +557,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     batch = _Batch(world, plant, params, runs, delay_lines(n_runs, world.actuator.delay_steps), controller_state,
                    acc.sums, accumulators, series, slot, noise, sensor_noise, xs, band_acc, chunk, band_slots)
     if sim.plant is None:
-        _run_compiled(batch, controller.laws.__name__, n_steps, n_threads, progress, compiling,
-                      in_lanes(sim) if lanes is None else lanes)
+        _run_compiled(batch, controller.laws.__name__, n_steps, n_threads, progress, compiling, by_blocks)
     else:
         _run_external(batch, controller.laws.__name__, sim.plant(sim, threads), seeds, n_steps, progress,
                       compiling)
