@@ -174,6 +174,33 @@ def test_the_step_state_is_released_before_the_metrics_are_formed(monkeypatch):
     assert np.isfinite(result.metrics["deviation_mae"][:, 0]).all()
 
 
+@pytest.mark.parametrize("block_runs", [1024, 3])
+def test_metrics_written_over_their_sums_are_those_computed_apart(monkeypatch, block_runs):
+    """finalize writes each block of runs' metrics over the sums they came from (no second array of 2 x 21 metrics
+    beside the sums at the batch's peak): every metric is a view of the sums' memory and equals, to the bit, the
+    metrics formed from a copy of the sums (the formulas run once over the whole batch, nothing overwritten)."""
+    from ddmr_cli.engine import metrics
+
+    monkeypatch.setattr(metrics, "FINALIZE_BLOCK_RUNS", block_runs)
+    rng = np.random.default_rng(7)
+    n_runs = 11
+    acc = metrics.MetricAccumulator(n_runs, 0.001, ["flat", "rough"], ["cruise"])
+    acc.sums[...] = rng.uniform(0.1, 2.0, acc.sums.shape)
+    acc.sums[..., metrics.SUMS.index("count")] = rng.integers(0, 50, acc.sums.shape[:2])  # some segments empty
+    state = np.zeros(n_runs, metrics.ACCUMULATOR_FIELDS)
+    state["dev_max"], state["dev_max_ss"], state["dev_final"] = rng.uniform(0, 1, (3, n_runs))
+    sums, n = acc.sums.copy(), len(acc.segments)
+    apart = {**acc._metrics(sums[:, :n], state["dev_max"], state["dev_final"]),
+             **{name + metrics.STEADY: v for name, v in
+                acc._metrics(sums[:, n:], state["dev_max_ss"], state["dev_final"]).items()}}
+    written = acc.finalize(state)
+    assert list(written) == list(apart)
+    for name, values in written.items():
+        assert np.shares_memory(values, acc.sums), name
+        assert values.shape == (n_runs, n)
+        assert np.array_equal(values, apart[name], equal_nan=True), name
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
 def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
