@@ -119,18 +119,6 @@ def test_chunk_size_does_not_change_series(default_chunks, monkeypatch):
     assert np.array_equal(chunked.diverged, default.diverged)
 
 
-def test_metrics_finalized_in_blocks_of_runs_are_those_of_the_whole_batch(batch, monkeypatch):
-    """The metrics are computed from the sums in blocks of runs (metrics.FINALIZE_BLOCK_RUNS bounds the
-    temporaries at any number of seeds): blocks of 3 runs, the last one short, give the same bits and keys."""
-    import ddmr_cli.engine.metrics as metrics_module
-
-    monkeypatch.setattr(metrics_module, "FINALIZE_BLOCK_RUNS", 3)
-    blocked = simulate(make_sim(), seeds=SEEDS, keep_series=[K])
-    assert list(blocked.metrics) == list(batch.metrics)
-    for i in range(len(SEEDS)):
-        assert_metrics_equal(blocked, i, batch, i)
-
-
 def test_chunk_size_does_not_change_metrics(default_chunks, monkeypatch):
     default, n_default = default_chunks
     monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 1)  # the smallest chunks the engine allows

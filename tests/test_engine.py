@@ -20,6 +20,7 @@ from paper import make_smc, make_pid, make_rbf, make_simulation
 from ddmr_cli import (PID, SMC, NonlinearDisturbanceObserver, OpenLoop, RBFNetworkObserver, Simulation,
                       paper_scenario, paper_terrain, simulate)
 from ddmr_cli.compiled import AVAILABLE
+from ddmr_cli.engine.catalog import METRICS, STEADY
 
 #: the controllers of the presets plus every switching function and surface
 CONTROLLERS = {
@@ -174,27 +175,67 @@ def test_the_step_state_is_released_before_the_metrics_are_formed(monkeypatch):
     assert np.isfinite(result.metrics["deviation_mae"][:, 0]).all()
 
 
-@pytest.mark.parametrize("block_runs", [1024, 3])
-def test_metrics_written_over_their_sums_are_those_computed_apart(monkeypatch, block_runs):
-    """finalize writes each block of runs' metrics over the sums they came from (no second array of 2 x 21 metrics
-    beside the sums at the batch's peak): every metric is a view of the sums' memory and equals, to the bit, the
-    metrics formed from a copy of the sums (the formulas run once over the whole batch, nothing overwritten)."""
+def numpy_metrics(sums, dev_max, dev_final, dt):
+    """The metrics of docs/model.md §7 from sums ``(runs, segments, SUMS)``, as numpy array expressions: the oracle
+    of the compiled finalize (the engine's own form until it was compiled)."""
+    from ddmr_cli.engine.metrics import SUMS
+
+    S = {name: sums[:, :, i] for i, name in enumerate(SUMS)}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = np.where(S["count"] > 0, S["count"], np.nan)
+
+        def wheels(name, f=lambda x: x / n):
+            return f(S[name + "_R"]), f(S[name + "_L"])
+
+        def hf(side):
+            mean_u = S["u" + side] / n
+            var_u = S["u2" + side] / n - mean_u ** 2
+            return np.where(var_u > 1e-12 * np.maximum(S["u2" + side] / n, 1e-300), S["u_hp2" + side] / n / var_u, 0.0)
+
+        chat_R, chat_L = wheels("abs_du", lambda x: x / n / dt)
+        out = {"deviation_mae": S["dev"] / n, "deviation_rmse": np.sqrt(S["dev2"] / n),
+               "deviation_max": np.full(n.shape, np.nan), "deviation_final": np.full(n.shape, np.nan),
+               "e_x_mae": S["abs_ex"] / n, "e_y_mae": S["abs_ey"] / n, "e_theta_mae": S["abs_eth"] / n,
+               "iae": S["dev"] * dt, "ise": S["dev2"] * dt, "itae": S["tdev"] * dt,
+               "chattering": (chat_R + chat_L) / 2.0, "chattering_right": chat_R, "chattering_left": chat_L,
+               "hf_fraction": (hf("_R") + hf("_L")) / 2.0, "mean_voltage": sum(wheels("abs_u")) / 2.0,
+               "energy_u2": sum(wheels("u2", lambda x: x)) * dt, "electrical_energy": sum(wheels("power", lambda x: x)) * dt,
+               "saturation_fraction": S["saturated"] / n, "d_est_mae": sum(wheels("abs_dtilde")) / 2.0,
+               "d_est_mae_ndo": sum(wheels("abs_dtilde_ndo")) / 2.0, "s_mae": sum(wheels("abs_s")) / 2.0}
+    out["deviation_max"][:, 0] = np.where(np.isfinite(dev_max), dev_max, np.nan)
+    out["deviation_final"][:, 0] = np.where(S["count"][:, 0] > 0, dev_final, np.nan)
+    return out
+
+
+def test_metrics_written_over_their_sums_are_the_formulas_computed_apart():
+    """finalize (compiled) writes each run's metrics over the sums they came from (no second array of 2 x 21
+    metrics beside the sums at the batch's peak): every metric is a view of the sums' memory and equals, to the
+    bit, the formulas as numpy expressions on a copy of the sums, empty segments (NaN means, 0 integrals),
+    a constant voltage (hf_fraction 0), an unbounded largest deviation (NaN) and a run that never counted a step
+    included."""
     from ddmr_cli.engine import metrics
 
-    monkeypatch.setattr(metrics, "FINALIZE_BLOCK_RUNS", block_runs)
     rng = np.random.default_rng(7)
-    n_runs = 11
-    acc = metrics.MetricAccumulator(n_runs, 0.001, ["flat", "rough"], ["cruise"])
+    n_runs, dt = 11, 0.001
+    acc = metrics.MetricAccumulator(n_runs, dt, ["flat", "rough"], ["cruise"])
     acc.sums[...] = rng.uniform(0.1, 2.0, acc.sums.shape)
     acc.sums[..., metrics.SUMS.index("count")] = rng.integers(0, 50, acc.sums.shape[:2])  # some segments empty
+    acc.sums[3] = 0.0  # a run that never counted a step
+    count = acc.sums[..., metrics.SUMS.index("count")]
+    for side in "RL":  # a constant voltage: u2 / n = (u / n)^2 exactly
+        acc.sums[4, :, metrics.SUMS.index("u_" + side)] = 2.0 * count[4]
+        acc.sums[4, :, metrics.SUMS.index("u2_" + side)] = 4.0 * count[4]
     state = np.zeros(n_runs, metrics.ACCUMULATOR_FIELDS)
     state["dev_max"], state["dev_max_ss"], state["dev_final"] = rng.uniform(0, 1, (3, n_runs))
+    state["dev_max"][5] = -np.inf
     sums, n = acc.sums.copy(), len(acc.segments)
-    apart = {**acc._metrics(sums[:, :n], state["dev_max"], state["dev_final"]),
-             **{name + metrics.STEADY: v for name, v in
-                acc._metrics(sums[:, n:], state["dev_max_ss"], state["dev_final"]).items()}}
+    apart = {**numpy_metrics(sums[:, :n], state["dev_max"], state["dev_final"], dt),
+             **{name + STEADY: v for name, v in
+                numpy_metrics(sums[:, n:], state["dev_max_ss"], state["dev_final"], dt).items()}}
     written = acc.finalize(state)
-    assert list(written) == list(apart)
+    assert list(written) == list(apart) == [*METRICS, *(name + STEADY for name in METRICS)]
+    assert np.isnan(written["deviation_mae"][3]).all() and (written["iae"][3] == 0).all()
+    assert (written["hf_fraction"][4] == 0).all() and np.isnan(written["deviation_max"][5, 0])
     for name, values in written.items():
         assert np.shares_memory(values, acc.sums), name
         assert values.shape == (n_runs, n)

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ddmr_cli.compiled import inlined_law, law
+from ddmr_cli.compiled import cached_law, inlined_law, law
 from ddmr_cli.engine.catalog import HF_CUTOFF, METRICS, STEADY
 
 #: Per-step sums kept per run and segment (column order of :func:`accumulate`); ``_R``/``_L`` per wheel.
@@ -65,10 +65,6 @@ def butterworth_highpass(cutoff: float, dt: float) -> tuple[np.ndarray, np.ndarr
     sos = np.array([b0, -2.0 * b0, b0, 1.0, 2.0 * (k * k - 1.0) * norm, (1.0 - math.sqrt(2.0) * k + k * k) * norm])
     return sos, np.array([-b0, b0])
 
-
-#: runs whose metrics :meth:`MetricAccumulator.finalize` computes at once: its temporaries stay about a MiB at any
-#: number of seeds (10,000 seeds at once: 10 MiB beside the sums)
-FINALIZE_BLOCK_RUNS = 1024
 
 #: Per-run fields of the accumulator's state (a structured record, beside the engine's run state): the last
 #: voltage and high-pass state, the largest deviation (all steps and steady steps), the last one, and the step at
@@ -241,16 +237,75 @@ def accumulate(sums, r, acc, k, settle_steps, zone_settle_steps, zone_segment, p
     acc["dev_final"] = dev
 
 
-def _wheel_sum(pair: np.ndarray) -> np.ndarray:
-    """Right wheel plus left (the first axis, of 2): numpy's ``sum`` over the pair to the bit, without its reduction
-    over a two-element axis (60-75 us an array of 1,000 runs)."""
-    return pair[0] + pair[1]
+#: column of each sum in a segment's row (:data:`SUMS`), for :func:`segment_metrics`
+(COUNT, DEV, DEV2, TDEV, ABS_EX, ABS_EY, ABS_ETH, SATURATED, ABS_DU_R, ABS_DU_L, U2_R, U2_L, POWER_R, POWER_L,
+ ABS_DTILDE_R, ABS_DTILDE_L, ABS_DTILDE_NDO_R, ABS_DTILDE_NDO_L, ABS_S_R, ABS_S_L, U_R, U_L, U_HP2_R, U_HP2_L,
+ ABS_U_R, ABS_U_L) = range(N_SUMS)
+#: the order in which :func:`segment_metrics` writes a segment's metrics: :data:`METRICS`'s own
+SEGMENT_METRICS = ("deviation_mae", "deviation_rmse", "deviation_max", "deviation_final", "e_x_mae", "e_y_mae",
+                   "e_theta_mae", "iae", "ise", "itae", "chattering", "chattering_right", "chattering_left",
+                   "hf_fraction", "mean_voltage", "energy_u2", "electrical_energy", "saturation_fraction",
+                   "d_est_mae", "d_est_mae_ndo", "s_mae")
+if SEGMENT_METRICS != tuple(METRICS):  # pragma: no cover - a metric added to the catalog and not here
+    raise ImportError("engine/metrics.py: segment_metrics writes other metrics than the catalog's METRICS")
+N_METRICS = len(SEGMENT_METRICS)
 
 
-def _wheel_mean(pair: np.ndarray) -> np.ndarray:
-    """The mean of the two wheels (the first axis, of 2): numpy's ``mean`` over the pair to the bit (its sum, over
-    2)."""
-    return _wheel_sum(pair) / 2.0
+@law
+def high_frequency_fraction(u_hp2, u2, u, n):
+    """[7a] ``hf_fraction`` of one wheel: ``mean(y^2) / var(u)``, y the high-passed voltage; 0 where var(u) is
+    nil (a constant voltage) against the mean square, or the segment is empty (``n`` NaN)."""
+    mean_u = u / n
+    var_u = u2 / n - mean_u * mean_u
+    floor = u2 / n
+    if not floor > 1e-300 and floor == floor:  # numpy's maximum(floor, 1e-300): NaN stays NaN
+        floor = 1e-300
+    return u_hp2 / n / var_u if var_u > 1e-12 * floor else 0.0
+
+
+@law
+def segment_metrics(s, dt, dev_max, dev_final, whole_run, out):
+    """The metrics of docs/model.md §7 of one segment from its sums ``s`` (a row of :data:`SUMS`), into ``out`` in
+    the order of :data:`SEGMENT_METRICS`: the means over the segment's steps (NaN when it has none), the integrals
+    (sums times ``dt``), a wheel pair's mean or sum. ``deviation_max`` and ``deviation_final`` are the whole run's
+    (``whole_run``; NaN in every other segment): the largest deviation ``dev_max`` (NaN where no step counted),
+    the last ``dev_final`` (NaN where the segment is empty)."""
+    n = s[COUNT] if s[COUNT] > 0 else np.nan
+    chattering_R, chattering_L = s[ABS_DU_R] / n / dt, s[ABS_DU_L] / n / dt
+    out[0] = s[DEV] / n
+    out[1] = math.sqrt(s[DEV2] / n)
+    out[2] = dev_max if whole_run and math.isfinite(dev_max) else np.nan
+    out[3] = dev_final if whole_run and s[COUNT] > 0 else np.nan
+    out[4], out[5], out[6] = s[ABS_EX] / n, s[ABS_EY] / n, s[ABS_ETH] / n
+    out[7], out[8], out[9] = s[DEV] * dt, s[DEV2] * dt, s[TDEV] * dt
+    out[10], out[11], out[12] = (chattering_R + chattering_L) / 2.0, chattering_R, chattering_L
+    out[13] = (high_frequency_fraction(s[U_HP2_R], s[U2_R], s[U_R], n)
+               + high_frequency_fraction(s[U_HP2_L], s[U2_L], s[U_L], n)) / 2.0
+    out[14] = (s[ABS_U_R] / n + s[ABS_U_L] / n) / 2.0
+    out[15], out[16] = (s[U2_R] + s[U2_L]) * dt, (s[POWER_R] + s[POWER_L]) * dt
+    out[17] = s[SATURATED] / n
+    out[18] = (s[ABS_DTILDE_R] / n + s[ABS_DTILDE_L] / n) / 2.0
+    out[19] = (s[ABS_DTILDE_NDO_R] / n + s[ABS_DTILDE_NDO_L] / n) / 2.0
+    out[20] = (s[ABS_S_R] / n + s[ABS_S_L] / n) / 2.0
+
+
+@cached_law
+def metrics_over_sums(sums, dev_max, dev_max_ss, dev_final, dt, rows, values):
+    """Every run's metrics (:func:`segment_metrics`, each segment over all its steps then over its steady ones)
+    into ``rows[run]``: metric ``i`` (of :data:`METRICS`, then their steady twins) of segment ``j`` at column
+    ``i * n_segments + j``. ``rows`` may be the sums' own memory: a run's metrics are formed in ``values`` from
+    its sums before they are written over them."""
+    n_runs, n_segments = sums.shape[0], sums.shape[1] // 2
+    out = values[:N_METRICS]
+    for r in range(n_runs):
+        for half in range(2):
+            largest = dev_max[r] if half == 0 else dev_max_ss[r]
+            for j in range(n_segments):
+                segment_metrics(sums[r, half * n_segments + j], dt, largest, dev_final[r], j == 0, out)
+                for i in range(N_METRICS):
+                    values[N_METRICS + (half * N_METRICS + i) * n_segments + j] = out[i]
+        for c in range(2 * N_METRICS * n_segments):
+            rows[r, c] = values[N_METRICS + c]
 
 
 class MetricAccumulator:
@@ -291,70 +346,18 @@ class MetricAccumulator:
     def finalize(self, state: np.ndarray) -> dict[str, np.ndarray]:
         """Metrics per run and segment from the sums and the run-state array: ``{name: array (n_runs, n_segments)}``
         for every metric of :data:`METRICS` and its steady-state twin ``name + STEADY`` (NaN where a segment is
-        empty). The step loop has added each run's last block to its segments at the run's last step
-        (:func:`flush`), so this is numpy on the sums alone.
+        empty), by the compiled :func:`metrics_over_sums`. The step loop has added each run's last block to its
+        segments at the run's last step (:func:`flush`).
 
         The metrics are written over the sums they come from (:attr:`sums` holds them afterwards: call once), a
-        block of runs at a time, each block's metrics computed in full from its own rows before they are
-        written there: a run's metrics take fewer numbers than its sums (``2 len(METRICS)`` against
-        ``2 N_SUMS`` a segment), and the largest batch's memory peaks here (10,000 seeds: the 17 MiB of
-        metrics came on top of the 20 MiB of sums). Each metric is a view ``(n_runs, n_segments)`` of that
-        memory; the numbers are those of separate arrays, to the bit."""
+        run at a time: a run's metrics take fewer numbers than its sums (``2 len(METRICS)`` against ``2 N_SUMS`` a
+        segment), and the largest batch's memory peaks here (10,000 seeds: 17 MiB of metrics came on top of the
+        20 MiB of sums). Each metric is a view ``(n_runs, n_segments)`` of that memory."""
         n, names = len(self.segments), [*METRICS, *(name + STEADY for name in METRICS)]
         rows = self.sums.reshape(self.n_runs, -1)
         if len(names) * n > rows.shape[1]:  # pragma: no cover - METRICS outgrew SUMS: separate arrays
             rows = np.empty((self.n_runs, len(names) * n))
-        out = {name: rows[:, i * n:(i + 1) * n] for i, name in enumerate(names)}
-        for first in range(0, self.n_runs, FINALIZE_BLOCK_RUNS):  # per run: blocks of runs change no number
-            runs = slice(first, first + FINALIZE_BLOCK_RUNS)
-            block = state[runs]
-            every = self._metrics(self.sums[runs, :n], block["dev_max"], block["dev_final"])
-            steady = self._metrics(self.sums[runs, n:], block["dev_max_ss"], block["dev_final"])
-            values = {**every, **{name + STEADY: values for name, values in steady.items()}}
-            # every value is computed before any is written: none may still read the block's sums
-            values = {name: v.copy() if np.may_share_memory(v, self.sums) else v for name, v in values.items()}
-            for name in names:
-                out[name][runs] = values[name]
-        return out
-
-    def _metrics(self, sums: np.ndarray, dev_max: np.ndarray, dev_final: np.ndarray) -> dict[str, np.ndarray]:
-        # a sum per run and segment; a wheel's pair (``_R``, ``_L``) wheel first, (2, runs, segments), each wheel's
-        # values contiguous (numpy's arithmetic on the strided pair broadcast against the count: 10x slower)
-        S = {name: sums[:, :, i] for i, name in enumerate(SUMS) if not name.endswith(("_R", "_L"))}
-        S.update({name[:-2]: np.stack([sums[:, :, i], sums[:, :, SUMS.index(name[:-2] + "_L")]])
-                  for i, name in enumerate(SUMS) if name.endswith("_R")})
-        dt = self.dt
-        with np.errstate(invalid="ignore", divide="ignore"):
-            n = np.where(S["count"] > 0, S["count"], np.nan)
-            mean_u = S["u"] / n
-            var_u = S["u2"] / n - mean_u**2
-            hf = np.where(var_u > 1e-12 * np.maximum(S["u2"] / n, 1e-300), S["u_hp2"] / n / var_u, 0.0)
-            chat = S["abs_du"] / n / dt
-            out = {
-                "deviation_mae": S["dev"] / n,
-                "deviation_rmse": np.sqrt(S["dev2"] / n),
-                "e_x_mae": S["abs_ex"] / n,
-                "e_y_mae": S["abs_ey"] / n,
-                "e_theta_mae": S["abs_eth"] / n,
-                "iae": S["dev"] * dt,
-                "ise": S["dev2"] * dt,
-                "itae": S["tdev"] * dt,
-                "chattering": _wheel_mean(chat),
-                "chattering_right": chat[0],
-                "chattering_left": chat[1],
-                "hf_fraction": _wheel_mean(hf),
-                "mean_voltage": _wheel_mean(S["abs_u"] / n),
-                "energy_u2": _wheel_sum(S["u2"]) * dt,
-                "electrical_energy": _wheel_sum(S["power"]) * dt,
-                "saturation_fraction": S["saturated"] / n,
-                "d_est_mae": _wheel_mean(S["abs_dtilde"] / n),
-                "d_est_mae_ndo": _wheel_mean(S["abs_dtilde_ndo"] / n),
-                "s_mae": _wheel_mean(S["abs_s"] / n),
-            }
-        total_only = {"deviation_max": np.where(np.isfinite(dev_max), dev_max, np.nan),
-                      "deviation_final": np.where(S["count"][:, 0] > 0, dev_final, np.nan)}
-        for key, val in total_only.items():
-            arr = np.full((len(dev_max), len(self.segments)), np.nan)
-            arr[:, 0] = val
-            out[key] = arr
-        return {k: out[k] for k in METRICS}
+        with np.errstate(invalid="ignore", divide="ignore"):  # the plain-Python laws (NUMBA_DISABLE_JIT=1)
+            metrics_over_sums(self.sums, state["dev_max"], state["dev_max_ss"], state["dev_final"], self.dt, rows,
+                              np.empty(N_METRICS + len(names) * n))
+        return {name: rows[:, i * n:(i + 1) * n] for i, name in enumerate(names)}
