@@ -250,7 +250,7 @@ def test_a_later_process_loads_the_compiled_loop_from_the_disk_cache(tmp_path):
         from ddmr_cli import paper_simulation, simulate
         import sys
         sim = paper_simulation("controller=pid", "simulation.duration=0.01")
-        simulate(sim, [0])
+        simulate(sim, [0], lanes=False)
         [copy] = [m for name, m in sys.modules.items() if name.startswith("ddmr_stepper_ddmr_cli_control_pid_")]
         stats = copy.run_chunk.stats
         print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()))

@@ -13,8 +13,8 @@ the delay line left the run record (an array beside it: its length is not its ty
 two state layouts of one law module (SMC's and SMC-NDO's records) are what two workers compile at once now.
 
 Tests: the race made deterministic; a swapped entry named and recompiled; one loop for every delay; warm numbers
-equal cold ones bit for bit, across processes, in mixed orders and in a reused joblib worker (fast: pid x 3
-delays; slow: every controller preset x 6 realism points x both scenarios, 144 jobs). The cold numbers come from
+equal cold ones bit for bit, across processes, in mixed orders and in a reused joblib worker (fast: adaptive_smc
+x 3 delays; slow: every controller preset x 6 realism points x both scenarios, 144 jobs). The cold numbers come from
 the two processes that fill the cache, each compiling every loop it runs (checked by numba's cache counters), so
 each signature is compiled once: the 144-job matrix took 705 s of the suite when a separate cold pass compiled
 everything again, 261-313 s when each delay compiled its own loop.
@@ -211,8 +211,9 @@ def test_one_compiled_loop_serves_every_actuator_delay(tmp_path):
     """The delay line is an array beside the run record, so its length is not part of the loop's type: a process
     running three delays compiles one loop; a loop compiled first for another delay gives a delay's numbers bit
     for bit (against a process that compiled for that delay alone); a later process loads it and compiles
-    nothing. The delays change the numbers (the line is used)."""
-    jobs, counts = ["pid:paper_2:delay_5ms", "pid:paper_2:-", "pid:paper_2:delay_2ms"], []
+    nothing. The delays change the numbers (the line is used). A controller without lanes laws, so that the job
+    without a delay steps by the same loop (a delay steps a run at a time)."""
+    jobs, counts = ["adaptive_smc:paper_2:delay_5ms", "adaptive_smc:paper_2:-", "adaptive_smc:paper_2:delay_2ms"], []
     alone = _run(tmp_path / "alone", jobs[0], counts=counts)  # compiled for the 5 ms line (6 rows)
     first_ideal = _run(tmp_path / "warm", *jobs[1:], jobs[0], counts=counts)  # compiled for 1 row, then 3, 6
     again = _run(tmp_path / "warm", *jobs[::-1], counts=counts)
@@ -425,7 +426,7 @@ def test_the_step_loop_is_compiled_without_reference_counting_and_refuses_to_all
     from ddmr_cli.engine.simulation import simulate
 
     monkeypatch.setenv("DDMR_CACHE_DIR", str(tmp_path))
-    simulate(paper_simulation("controller=pid", "simulation.duration=0.01"), [0])
+    simulate(paper_simulation("controller=pid", "simulation.duration=0.01"), [0], lanes=False)
     copies = [m for name, m in sys.modules.items() if name.startswith("ddmr_stepper_ddmr_cli_control_pid_")]
     assert copies and all(m.run_chunk.targetoptions.get("_nrt") is False for m in copies)
     assert "import loop_law as law" in kernels._source_for("ddmr_cli.control.pid")

@@ -55,6 +55,10 @@ def _assert_same(a, b):
     ["controller=smc", "controller.switching=tanh", "controller.surface=integral"],
     ["controller=smc_ndo", "controller.switching=sign"],
     ["controller=open_loop"],
+    ["controller=pid"],
+    ["controller=pid", "controller.kp=20.0", "controller.ki=300.0"],  # saturated more often: the anti-windup
+    ["controller=sta"],
+    ["controller=sta_ndo", "scenario=paper_2"],
 ], ids=lambda o: " ".join(o))
 def test_lanes_give_the_run_at_a_time_numbers(overrides):
     # settling early, so that the steady-state metrics (and their segments' entries) count steps in 2.5 s
@@ -85,7 +89,7 @@ def test_a_seed_is_the_same_alone_and_in_any_lane():
 
 
 @pytest.mark.parametrize("overrides", [
-    ["controller=pid"],  # no lanes laws
+    ["controller=adrc"],  # no lanes laws
     ["controller=smc_ndo", "sensor=encoder"],
     ["controller=smc_ndo", "actuator.delay=0.005"],
     ["controller=smc_ndo", "simulation.integrator=rk4"],

@@ -13,9 +13,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import inlined_law, law
 from ddmr_cli.checks import boolean, compact, per_wheel
-from ddmr_cli.control.base import SURFACE, Diagnostic, WheelController
+from ddmr_cli.control.base import (DIAGNOSTICS, SAT_L, SAT_R, SURFACE, UC_L, UC_R, W_L, W_R, WD_L, WD_R, Diagnostic,
+                                   WheelController)
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.dynamics import sign
 from ddmr_cli.model.robot import NominalModel
@@ -45,11 +46,16 @@ def pid(kp, ki, kd, e, integral, e_dot):
 
 
 @law
+def error_rate(k, e, e_prev, dt):
+    """``e' = (e_k - e_k-1) / dt`` [rad/s^2], 0 at the first step."""
+    return 0.0 if k == 0 else (e - e_prev) * (1.0 / dt)
+
+
+@law
 def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
-    """PID per wheel; ``e' = (e_k - e_k-1) / dt``, 0 at the first step."""
+    """PID per wheel on ``e = w_d - w``."""
     e_R, e_L = wd_R - w_R, wd_L - w_L
-    ed_R = 0.0 if k == 0 else (e_R - st["e_prev"][0]) * (1.0 / p.dt)
-    ed_L = 0.0 if k == 0 else (e_L - st["e_prev"][1]) * (1.0 / p.dt)
+    ed_R, ed_L = error_rate(k, e_R, st["e_prev"][0], p.dt), error_rate(k, e_L, st["e_prev"][1], p.dt)
     st["e_prev"][0] = e_R
     st["e_prev"][1] = e_L
     u_R = pid(p.kp[0], p.ki[0], p.kd[0], e_R, st["integral"][0], ed_R)
@@ -72,6 +78,47 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     """One Euler step of the integral of the error, with conditional integration."""
     st["integral"][0] += p.dt * integrand(wd_R - w_R, uc_R, sat_R, p.anti_windup)
     st["integral"][1] += p.dt * integrand(wd_L - w_L, uc_L, sat_L, p.anti_windup)
+
+
+# --- lanes (ddmr_cli.control.base, "Lanes"): the laws above over a block of runs ----------------------------------
+#: rows of the controller's array C of a block: the error integral and the previous error, per wheel
+INTEGRAL_R, INTEGRAL_L, E_PREV_R, E_PREV_L = range(4)
+#: rows of C (ddmr_cli.control.base, "Lanes")
+LANE_STATE_ROWS = 4
+
+
+@law
+def lanes_load(p, st, C, l):
+    """Run record ``st`` into lane ``l`` of ``C``."""
+    C[INTEGRAL_R, l], C[INTEGRAL_L, l] = st["integral"][0], st["integral"][1]
+    C[E_PREV_R, l], C[E_PREV_L, l] = st["e_prev"][0], st["e_prev"][1]
+
+
+@law
+def lanes_store(p, st, C, l):
+    """Lane ``l`` of ``C`` back into run record ``st``."""
+    st["integral"][0], st["integral"][1] = C[INTEGRAL_R, l], C[INTEGRAL_L, l]
+    st["e_prev"][0], st["e_prev"][1] = C[E_PREV_R, l], C[E_PREV_L, l]
+
+
+@inlined_law
+def lanes_command(p, C, L, nb, k):
+    """:func:`command` for lanes ``0 .. nb - 1``."""
+    for l in range(nb):
+        e_R, e_L = L[WD_R, l] - L[W_R, l], L[WD_L, l] - L[W_L, l]
+        ed_R, ed_L = error_rate(k, e_R, C[E_PREV_R, l], p.dt), error_rate(k, e_L, C[E_PREV_L, l], p.dt)
+        C[E_PREV_R, l], C[E_PREV_L, l] = e_R, e_L
+        L[UC_R, l] = pid(p.kp[0], p.ki[0], p.kd[0], e_R, C[INTEGRAL_R, l], ed_R)
+        L[UC_L, l] = pid(p.kp[1], p.ki[1], p.kd[1], e_L, C[INTEGRAL_L, l], ed_L)
+        L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l] = e_R, e_L
+
+
+@inlined_law
+def lanes_update(p, C, L, nb):
+    """:func:`update` for lanes ``0 .. nb - 1``."""
+    for l in range(nb):
+        C[INTEGRAL_R, l] += p.dt * integrand(L[WD_R, l] - L[W_R, l], L[UC_R, l], L[SAT_R, l] != 0.0, p.anti_windup)
+        C[INTEGRAL_L, l] += p.dt * integrand(L[WD_L, l] - L[W_L, l], L[UC_L, l], L[SAT_L, l] != 0.0, p.anti_windup)
 
 
 def _pd_spectral_radius(dt_g_kp: float, g_kd: float) -> float:

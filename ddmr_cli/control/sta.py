@@ -17,10 +17,11 @@ import sys
 from typing import NamedTuple
 
 from ddmr_cli.checks import boolean, compact, per_wheel, positive
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import inlined_law, law
 from ddmr_cli.control import ndo
 from ddmr_cli.control.pid import integrand
-from ddmr_cli.control.base import ESTIMATE, SURFACE, Diagnostic, StepRate, WheelController
+from ddmr_cli.control.base import (DIAGNOSTICS, ESTIMATE, SAT_L, SAT_R, SURFACE, U_L, U_R, UC_L, UC_R, W_L, W_R, WD_L,
+                                   WD_R, WDD_L, WDD_R, Diagnostic, StepRate, WheelController)
 from ddmr_cli.model.dynamics import sign, voltage_for
 from ddmr_cli.model.robot import NominalModel
 
@@ -74,6 +75,58 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     if p.has_ndo:
         ndo.update(p.ndo, p.nominal, p.dt, st["z"], st["diagnostics"][1, 0], st["diagnostics"][1, 1], w_R, w_L, u_R,
                    u_L)
+
+
+# --- lanes (ddmr_cli.control.base, "Lanes"): the laws above over a block of runs ----------------------------------
+#: rows of the controller's array C of a block: the integral v, the NDO's state, the NDO's estimate this step
+V_R, V_L, Z_R, Z_L, DNDO_R, DNDO_L = range(6)
+#: rows of C (ddmr_cli.control.base, "Lanes")
+LANE_STATE_ROWS = 6
+
+
+@law
+def lanes_load(p, st, C, l):
+    """Run record ``st`` into lane ``l`` of ``C``."""
+    C[V_R, l], C[V_L, l] = st["v"][0], st["v"][1]
+    C[Z_R, l], C[Z_L, l] = st["z"][0], st["z"][1]
+
+
+@law
+def lanes_store(p, st, C, l):
+    """Lane ``l`` of ``C`` back into run record ``st``."""
+    st["v"][0], st["v"][1] = C[V_R, l], C[V_L, l]
+    st["z"][0], st["z"][1] = C[Z_R, l], C[Z_L, l]
+
+
+@inlined_law
+def lanes_command(p, C, L, nb, k):
+    """:func:`command` for lanes ``0 .. nb - 1``: the NDO's estimate (21), then the super-twisting voltage."""
+    for l in range(nb):
+        w_R, w_L = L[W_R, l], L[W_L, l]
+        s_R, s_L = L[WD_R, l] - w_R, L[WD_L, l] - w_L
+        dndo_R, dndo_L = ndo.estimate_of(p.ndo, C[Z_R, l], C[Z_L, l], w_R, w_L) if p.has_ndo else (0.0, 0.0)
+        C[DNDO_R, l], C[DNDO_L, l] = dndo_R, dndo_L
+        a_R = L[WDD_R, l] + super_twisting(s_R, p.k1[0], C[V_R, l]) - dndo_R
+        a_L = L[WDD_L, l] + super_twisting(s_L, p.k1[1], C[V_L, l]) - dndo_L
+        L[UC_R, l], L[UC_L, l] = voltage_for(p.nominal, a_R, a_L, w_R, w_L)
+        L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l] = s_R, s_L
+    if p.has_ndo:  # the channel after s
+        for l in range(nb):
+            L[DIAGNOSTICS + 2, l], L[DIAGNOSTICS + 3, l] = C[DNDO_R, l], C[DNDO_L, l]
+
+
+@inlined_law
+def lanes_update(p, C, L, nb):
+    """:func:`update` for lanes ``0 .. nb - 1``: v, then the NDO (22)."""
+    for l in range(nb):
+        C[V_R, l] += (p.dt * p.k2[0]) * integrand(sign(L[WD_R, l] - L[W_R, l]) * 1.0, L[UC_R, l], L[SAT_R, l] != 0.0,
+                                                 p.anti_windup)
+        C[V_L, l] += (p.dt * p.k2[1]) * integrand(sign(L[WD_L, l] - L[W_L, l]) * 1.0, L[UC_L, l], L[SAT_L, l] != 0.0,
+                                                 p.anti_windup)
+    if p.has_ndo:
+        for l in range(nb):
+            C[Z_R, l], C[Z_L, l] = ndo.next_state(p.ndo, p.nominal, p.dt, C[Z_R, l], C[Z_L, l], C[DNDO_R, l],
+                                                  C[DNDO_L, l], L[W_R, l], L[W_L, l], L[U_R, l], L[U_L, l])
 
 
 class SuperTwisting(WheelController):
