@@ -21,8 +21,9 @@ import sys
 from typing import NamedTuple
 
 from ddmr_cli.checks import positive
-from ddmr_cli.compiled import law
-from ddmr_cli.control.base import ESTIMATE, STABILITY_LIMIT, SURFACE, Diagnostic, StepRate, WheelController
+from ddmr_cli.compiled import inlined_law, law
+from ddmr_cli.control.base import (DIAGNOSTICS, ESTIMATE, STABILITY_LIMIT, SURFACE, U_L, U_R, UC_L, UC_R, W_L, W_R, WD_L,
+                                   WD_R, WDD_L, WDD_R, Diagnostic, StepRate, WheelController)
 from ddmr_cli.errors import ConfigError
 from ddmr_cli.model.dynamics import nominal_acceleration, voltage_for
 from ddmr_cli.model.robot import NominalModel
@@ -61,21 +62,33 @@ def start(p, st, w0_R, w0_L):
 
 
 @law
+def voltage(p, z1, z2, wd, wdd):
+    """[6g] ``u = (w_c (w_d - z1) + w_d' - z2) / b0`` of one wheel [V]."""
+    return (p.bandwidth * (wd - z1) + wdd - z2) * (1.0 / p.b0)
+
+
+@law
 def command(p, st, k, w_R, w_L, wd_R, wd_L, wdd_R, wdd_L):
-    """[6g] ``u = (w_c (w_d - z1) + w_d' - z2) / b0`` per wheel (the estimate of ``d`` needs the applied
-    voltage: :func:`estimates`)."""
-    u_R = (p.bandwidth * (wd_R - st["z1"][0]) + wdd_R - st["z2"][0]) * (1.0 / p.b0)
-    u_L = (p.bandwidth * (wd_L - st["z1"][1]) + wdd_L - st["z2"][1]) * (1.0 / p.b0)
+    """[6g] per wheel (the estimate of ``d`` needs the applied voltage: :func:`estimates`)."""
+    u_R = voltage(p, st["z1"][0], st["z2"][0], wd_R, wdd_R)
+    u_L = voltage(p, st["z1"][1], st["z2"][1], wd_L, wdd_L)
     st["diagnostics"][0, 0], st["diagnostics"][0, 1] = wd_R - w_R, wd_L - w_L
     return u_R, u_L
 
 
 @law
-def estimates(p, st, w_R, w_L, u_R, u_L):
+def disturbance_estimate(p, z2_R, z2_L, w_R, w_L, u_R, u_L):
     """The ESO's estimate of ``d``: the part of ``z2`` the nominal model does not explain under the applied
     voltage ``u`` (after the driver's limit and PWM, the ``u`` the ESO is fed), ``z2 - (f(w) + (g - b0) u)``."""
     f_R, f_L = total_disturbance(p.nominal, p.b0, w_R, w_L, u_R, u_L)
-    st["diagnostics"][1, 0], st["diagnostics"][1, 1] = st["z2"][0] - f_R, st["z2"][1] - f_L
+    return z2_R - f_R, z2_L - f_L
+
+
+@law
+def estimates(p, st, w_R, w_L, u_R, u_L):
+    """:func:`disturbance_estimate` into the second diagnostic channel."""
+    st["diagnostics"][1, 0], st["diagnostics"][1, 1] = disturbance_estimate(p, st["z2"][0], st["z2"][1], w_R, w_L,
+                                                                            u_R, u_L)
 
 
 @law
@@ -83,6 +96,44 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
     """One ESO step per wheel with the applied ``u``."""
     st["z1"][0], st["z2"][0] = eso_step(st["z1"][0], st["z2"][0], w_R, u_R, p.b0, p.beta1, p.beta2, p.dt)
     st["z1"][1], st["z2"][1] = eso_step(st["z1"][1], st["z2"][1], w_L, u_L, p.b0, p.beta1, p.beta2, p.dt)
+
+
+# --- lanes (ddmr_cli.control.base, "Lanes"): the laws above over a block of runs ----------------------------------
+#: rows of the controller's array C of a block: the ESO's state per wheel
+Z1_R, Z1_L, Z2_R, Z2_L = range(4)
+#: rows of C (ddmr_cli.control.base, "Lanes")
+LANE_STATE_ROWS = 4
+
+
+@law
+def lanes_load(p, st, C, l):
+    """Run record ``st`` into lane ``l`` of ``C``."""
+    C[Z1_R, l], C[Z1_L, l], C[Z2_R, l], C[Z2_L, l] = st["z1"][0], st["z1"][1], st["z2"][0], st["z2"][1]
+
+
+@law
+def lanes_store(p, st, C, l):
+    """Lane ``l`` of ``C`` back into run record ``st``."""
+    st["z1"][0], st["z1"][1], st["z2"][0], st["z2"][1] = C[Z1_R, l], C[Z1_L, l], C[Z2_R, l], C[Z2_L, l]
+
+
+@inlined_law
+def lanes_command(p, C, L, nb, k):
+    """:func:`command` for lanes ``0 .. nb - 1``."""
+    for l in range(nb):
+        L[UC_R, l] = voltage(p, C[Z1_R, l], C[Z2_R, l], L[WD_R, l], L[WDD_R, l])
+        L[UC_L, l] = voltage(p, C[Z1_L, l], C[Z2_L, l], L[WD_L, l], L[WDD_L, l])
+        L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l] = L[WD_R, l] - L[W_R, l], L[WD_L, l] - L[W_L, l]
+
+
+@inlined_law
+def lanes_update(p, C, L, nb):
+    """:func:`estimates`, then :func:`update`, for lanes ``0 .. nb - 1``."""
+    for l in range(nb):
+        L[DIAGNOSTICS + 2, l], L[DIAGNOSTICS + 3, l] = disturbance_estimate(p, C[Z2_R, l], C[Z2_L, l], L[W_R, l],
+                                                                            L[W_L, l], L[U_R, l], L[U_L, l])
+        C[Z1_R, l], C[Z2_R, l] = eso_step(C[Z1_R, l], C[Z2_R, l], L[W_R, l], L[U_R, l], p.b0, p.beta1, p.beta2, p.dt)
+        C[Z1_L, l], C[Z2_L, l] = eso_step(C[Z1_L, l], C[Z2_L, l], L[W_L, l], L[U_L, l], p.b0, p.beta1, p.beta2, p.dt)
 
 
 class ADRC(WheelController):
