@@ -13,8 +13,8 @@ the delay line left the run record (an array beside it: its length is not its ty
 two state layouts of one law module (SMC's and SMC-NDO's records) are what two workers compile at once now.
 
 Tests: the race made deterministic; a swapped entry named and recompiled; one loop for every delay; warm numbers
-equal cold ones bit for bit, across processes, in mixed orders and in a reused joblib worker (fast: adaptive_smc
-x 3 delays; slow: every controller preset x 6 realism points x both scenarios, 144 jobs). The cold numbers come from
+equal cold ones bit for bit, across processes, in mixed orders and in a reused joblib worker (fast: pid x 3
+delays; slow: every controller preset x 6 realism points x both scenarios, 144 jobs). The cold numbers come from
 the two processes that fill the cache, each compiling every loop it runs (checked by numba's cache counters), so
 each signature is compiled once: the 144-job matrix took 705 s of the suite when a separate cold pass compiled
 everything again, 261-313 s when each delay compiled its own loop.
@@ -209,15 +209,15 @@ def test_a_cache_entry_compiled_for_another_call_is_named_and_recompiled(tmp_pat
 
 def test_one_compiled_loop_serves_every_actuator_delay(tmp_path):
     """The delay line is an array beside the run record, so its length is not part of the loop's type: a process
-    running three delays compiles one loop; a loop compiled first for another delay gives a delay's numbers bit
-    for bit (against a process that compiled for that delay alone); a later process loads it and compiles
-    nothing. The delays change the numbers (the line is used). A controller without lanes laws, so that the job
-    without a delay steps by the same loop (a delay steps a run at a time)."""
-    jobs, counts = ["adaptive_smc:paper_2:delay_5ms", "adaptive_smc:paper_2:-", "adaptive_smc:paper_2:delay_2ms"], []
+    running two delays compiles one loop for both (and the loop by blocks of runs for the job without a delay, which
+    steps in lanes); a loop compiled first for another delay gives a delay's numbers bit for bit (against a process
+    that compiled for that delay alone); a later process loads both and compiles nothing. The delays change the
+    numbers (the line is used)."""
+    jobs, counts = ["pid:paper_2:delay_5ms", "pid:paper_2:-", "pid:paper_2:delay_2ms"], []
     alone = _run(tmp_path / "alone", jobs[0], counts=counts)  # compiled for the 5 ms line (6 rows)
-    first_ideal = _run(tmp_path / "warm", *jobs[1:], jobs[0], counts=counts)  # compiled for 1 row, then 3, 6
+    first_ideal = _run(tmp_path / "warm", *jobs[1:], jobs[0], counts=counts)  # lanes, then 3 rows, then 6
     again = _run(tmp_path / "warm", *jobs[::-1], counts=counts)
-    assert counts == [(0, 1), (0, 1), (1, 0)], counts
+    assert counts == [(0, 1), (0, 2), (2, 0)], counts
     assert first_ideal[jobs[0]] == alone[jobs[0]]
     assert again == first_ideal
     assert len({tuple(values) for values in first_ideal.values()}) == 3, first_ideal

@@ -60,6 +60,8 @@ def _assert_same(a, b):
     ["controller=sta"],
     ["controller=sta_ndo", "scenario=paper_2"],
     ["controller=adrc", "controller.bandwidth=150.0"],  # saturated at the start: the ESO takes the applied u
+    ["controller=adaptive_smc"],
+    ["controller=adaptive_smc_ndo", "scenario=paper_2"],
 ], ids=lambda o: " ".join(o))
 def test_lanes_give_the_run_at_a_time_numbers(overrides):
     # settling early, so that the steady-state metrics (and their segments' entries) count steps in 2.5 s
@@ -90,7 +92,7 @@ def test_a_seed_is_the_same_alone_and_in_any_lane():
 
 
 @pytest.mark.parametrize("overrides", [
-    ["controller=adaptive_smc"],  # no lanes laws
+    ["controller=smc_ndo_nno", "controller.nn.n_neurons=40"],  # more neurons than the lanes rows hold
     ["controller=smc_ndo", "sensor=encoder"],
     ["controller=smc_ndo", "actuator.delay=0.005"],
     ["controller=smc_ndo", "simulation.integrator=rk4"],

@@ -13,8 +13,9 @@ import sys
 from typing import NamedTuple
 
 from ddmr_cli.checks import compact, non_negative, per_wheel, positive
-from ddmr_cli.compiled import law
+from ddmr_cli.compiled import inlined_law, law
 from ddmr_cli.control import smc
+from ddmr_cli.control.base import DIAGNOSTICS
 from ddmr_cli.errors import ConfigError
 
 
@@ -59,6 +60,46 @@ def update(p, st, w_R, w_L, wd_R, wd_L, u_R, u_L, uc_R, uc_L, sat_R, sat_L):
                           p.gain_max, q.dt)
     st["gain"][1] = adapt(st["gain"][1], st["diagnostics"][0, 1], p.adaptation_rate[1], p.leakage, p.dead_zone, p.gain_min,
                           p.gain_max, q.dt)
+
+
+# --- lanes (ddmr_cli.control.base, "Lanes"): the laws above over a block of runs ----------------------------------
+#: rows of the controller's array C of a block: SMC's, then the gains K per wheel
+GAIN_R = smc.LANE_STATE_ROWS
+GAIN_L = GAIN_R + 1
+#: rows of C (ddmr_cli.control.base, "Lanes")
+LANE_STATE_ROWS = GAIN_R + 2
+
+
+@law
+def lanes_load(p, st, C, l):
+    """Run record ``st`` into lane ``l`` of ``C``."""
+    smc.lanes_load(p.smc, st, C, l)
+    C[GAIN_R, l], C[GAIN_L, l] = st["gain"][0], st["gain"][1]
+
+
+@law
+def lanes_store(p, st, C, l):
+    """Lane ``l`` of ``C`` back into run record ``st``."""
+    smc.lanes_store(p.smc, st, C, l)
+    st["gain"][0], st["gain"][1] = C[GAIN_R, l], C[GAIN_L, l]
+
+
+@inlined_law
+def lanes_command(p, C, L, nb, k):
+    """:func:`command` for lanes ``0 .. nb - 1``: SMC's (17) with each lane's gains."""
+    smc.sliding_lanes_command(p.smc, C, L, nb, k, GAIN_R)
+
+
+@inlined_law
+def lanes_update(p, C, L, nb):
+    """:func:`update` for lanes ``0 .. nb - 1``: SMC's states, then the gains from this step's sliding variable."""
+    smc.lanes_update(p.smc, C, L, nb)
+    q = p.smc
+    for l in range(nb):
+        C[GAIN_R, l] = adapt(C[GAIN_R, l], L[DIAGNOSTICS, l], p.adaptation_rate[0], p.leakage, p.dead_zone,
+                             p.gain_min, p.gain_max, q.dt)
+        C[GAIN_L, l] = adapt(C[GAIN_L, l], L[DIAGNOSTICS + 1, l], p.adaptation_rate[1], p.leakage, p.dead_zone,
+                             p.gain_min, p.gain_max, q.dt)
 
 
 class AdaptiveSMC(smc.SMC):

@@ -165,22 +165,31 @@ def lanes_store(p, st, C, l):
 
 
 @inlined_law
-def _lanes_sliding(p, C, L, nb, kind):
-    """:func:`sliding_command` for every lane, the switching function ``kind`` a constant of the loop."""
+def _lanes_sliding(p, C, L, nb, kind, gain_row):
+    """:func:`sliding_command` for every lane, the switching function ``kind`` a constant of the loop; the gains K
+    the configured ones (``gain_row`` -1) or each lane's, in rows ``gain_row`` (right) and ``gain_row + 1``."""
     for l in range(nb):
         w_R, w_L = L[W_R, l], L[W_L, l]
         s_R, linear_R = surface(L[WD_R, l] - w_R, C[EI_R, l], p.lam[0], p.integral_surface)
         s_L, linear_L = surface(L[WD_L, l] - w_L, C[EI_L, l], p.lam[1], p.integral_surface)
+        gain_R = p.switching_gain[0] if gain_row < 0 else C[gain_row, l]
+        gain_L = p.switching_gain[1] if gain_row < 0 else C[gain_row + 1, l]
         L[UC_R, l], L[UC_L, l] = sliding_voltage(p, kind, s_R, s_L, linear_R, linear_L, L[WDD_R, l], L[WDD_L, l],
-                                                 p.switching_gain[0], p.switching_gain[1],
-                                                 C[DNDO_R, l] + C[DNN_R, l], C[DNDO_L, l] + C[DNN_L, l], w_R, w_L)
+                                                 gain_R, gain_L, C[DNDO_R, l] + C[DNN_R, l],
+                                                 C[DNDO_L, l] + C[DNN_L, l], w_R, w_L)
         L[DIAGNOSTICS, l], L[DIAGNOSTICS + 1, l] = s_R, s_L
 
 
 @inlined_law
 def lanes_command(p, C, L, nb, k):
-    """:func:`command` for lanes ``0 .. nb - 1``: the NDO's estimate (21), the network's (24) a neuron at a time
-    over the lanes, then (17)."""
+    """:func:`command` for lanes ``0 .. nb - 1``: :func:`sliding_lanes_command` with the configured gains."""
+    sliding_lanes_command(p, C, L, nb, k, -1)
+
+
+@inlined_law
+def sliding_lanes_command(p, C, L, nb, k, gain_row):
+    """:func:`sliding_command` for lanes ``0 .. nb - 1``: the NDO's estimate (21), the network's (24) a neuron at a
+    time over the lanes, then (17) with the gains :func:`_lanes_sliding` reads (``gain_row``)."""
     for l in range(nb):
         C[DNDO_R, l], C[DNDO_L, l], C[DNN_R, l], C[DNN_L, l] = 0.0, 0.0, 0.0, 0.0
     if p.has_ndo:
@@ -194,11 +203,11 @@ def lanes_command(p, C, L, nb, k):
                 C[DNN_R, l] += C[NEURONS + 2 * j, l] * phi
                 C[DNN_L, l] += C[NEURONS + 2 * j + 1, l] * phi
     if p.switching == SAT:
-        _lanes_sliding(p, C, L, nb, SAT)
+        _lanes_sliding(p, C, L, nb, SAT, gain_row)
     elif p.switching == SIGN:
-        _lanes_sliding(p, C, L, nb, SIGN)
+        _lanes_sliding(p, C, L, nb, SIGN, gain_row)
     else:
-        _lanes_sliding(p, C, L, nb, TANH)
+        _lanes_sliding(p, C, L, nb, TANH, gain_row)
     if p.has_ndo:  # the channels after s: the NDO's, then the network's
         for l in range(nb):
             L[DIAGNOSTICS + 2, l], L[DIAGNOSTICS + 3, l] = C[DNDO_R, l], C[DNDO_L, l]
