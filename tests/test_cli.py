@@ -388,6 +388,34 @@ def test_the_program_and_the_task_function_collect_the_youngest_generation_less_
         gc.set_threshold(*saved)
 
 
+def test_the_program_loads_openblas_on_one_thread_and_keeps_the_users_choice(monkeypatch):
+    """The ddmr program sets OPENBLAS_NUM_THREADS=1 before numpy loads, so OpenBLAS starts no pool of spinning
+    threads (a process of its own, as the program is: the thread count after importing numpy, against the same
+    import without the program's entry); a value the user set stays; the Python API sets nothing."""
+    import gc
+
+    from ddmr_cli.cli import main as cli_main
+    from ddmr_cli.cli.blas import VARIABLE
+
+    monkeypatch.delenv(VARIABLE, raising=False)
+    assert cli_main.console(["--version"]) == 0 and VARIABLE not in os.environ
+    monkeypatch.setenv(VARIABLE, "3")
+    monkeypatch.setattr(sys, "argv", ["ddmr", "--version"])
+    assert cli_main.console() == 0 and os.environ[VARIABLE] == "3"
+    gc.unfreeze()  # the program freezes what it loaded before it exits
+    script = ("import os, sys; sys.argv = ['ddmr', '--version']\n"
+              "from ddmr_cli.cli.main import console\n"
+              "if {program}: console()\n"
+              "import numpy; print(os.environ.get('{var}'), len(os.listdir('/proc/self/task')))")
+    env = {k: v for k, v in os.environ.items() if k != VARIABLE}
+    out = {program: subprocess.run([sys.executable, "-c", script.format(program=program, var=VARIABLE)], env=env,
+                                   capture_output=True, text=True, check=True).stdout.split()[-2:]
+           for program in (True, False)}
+    assert out[True] == ["1", "1"], out  # the program: one thread, numpy's own included
+    if (os.cpu_count() or 1) > 1:
+        assert out[False][0] == "None" and int(out[False][1]) > 1, out  # without it, OpenBLAS's pool
+
+
 def test_bench_reads_the_hosts_ceiling_as_throughput_of_processes_at_once():
     """The threads' ceiling: cores x (one process alone) / (cores processes together), median over the pairs; and
     the real processes run (a tiny piece of work: a positive ratio, at most the cores and some timing slack)."""

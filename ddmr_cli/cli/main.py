@@ -12,6 +12,7 @@ import logging
 import sys
 from typing import Sequence
 
+from ddmr_cli.cli.blas import single_threaded_blas
 from ddmr_cli.cli.collector import collect_less_often
 
 USAGE = """\
@@ -175,7 +176,8 @@ def _freeze_the_run_modules() -> None:
 
 def console(argv: Sequence[str] | None = None) -> int:
     """The ``ddmr`` command: :func:`main`; run as the program (``argv`` None), with the garbage collector's
-    youngest generation collected less often (:func:`~ddmr_cli.cli.collector.collect_less_often`), a single run's
+    youngest generation collected less often (:func:`~ddmr_cli.cli.collector.collect_less_often`), OpenBLAS on one
+    thread (:func:`~ddmr_cli.cli.blas.single_threaded_blas`, before numpy loads), a single run's
     drawing processes started first (:func:`_plot_processes`) and its modules frozen (:func:`_freeze_the_run_modules`),
     then :func:`gc.freeze`, so that the interpreter's exit does not walk every object the command loaded (numba's,
     Hydra's, matplotlib's) in its last garbage collections: 0.15 s of a 1 s ``ddmr run`` (measured). Frozen objects
@@ -184,6 +186,7 @@ def console(argv: Sequence[str] | None = None) -> int:
     program = argv is None
     if program:
         collect_less_often()
+        single_threaded_blas()
     with _plot_processes(sys.argv[1:] if program else None) as drawing:
         if drawing is not None:
             _freeze_the_run_modules()
