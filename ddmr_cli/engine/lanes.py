@@ -40,7 +40,7 @@ from ddmr_cli.control.base import (DIAGNOSTICS, LANES, LANE_ROWS, SAT_L, SAT_R, 
                                    WD_R, WDD_L, WDD_R)
 from ddmr_cli.control.outer_loop import kanayama_of
 from ddmr_cli.engine.bands import band_row
-from ddmr_cli.engine.metrics import N_SUMS, add_block, flush, highpass, segment_key, step_terms
+from ddmr_cli.engine.metrics import N_SUMS, add_block, add_terms, flush, highpass, segment_key, step_terms
 from ddmr_cli.engine.results import record
 from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.dynamics import saturate, wheel_acceleration
@@ -326,7 +326,7 @@ def metrics(k, world, plant, L, nb):
         L[UP_R, l], L[UP_L, l], L[STARTED, l] = u_R, u_L, 1.0
     for l in range(nb):  # the step's terms of the sums
         s_R, s_L = surface_of(world.surface, L, l)
-        add_terms(L, l, step_terms(t, L[DEV, l], L[E_X, l], L[E_Y, l], L[E_TH, l],
+        add_terms(L[BLOCK:BLOCK + N_SUMS, l], step_terms(t, L[DEV, l], L[E_X, l], L[E_Y, l], L[E_TH, l],
                                    L[SAT_R, l] + L[SAT_L, l] != 0.0, L[U_R, l], L[U_L, l], L[PREV_R, l], L[PREV_L, l],
                                    L[W_R, l], L[W_L, l], L[DT0_R, l], L[DT0_L, l], L[DT1_R, l], L[DT1_L, l], s_R, s_L,
                                    L[HP_Y_R, l], L[HP_Y_L, l], plant.back_emf_constant, plant.armature_resistance))
@@ -336,38 +336,6 @@ def metrics(k, world, plant, L, nb):
         L[DEV_MAX_SS, l] = dev if settled and dev > L[DEV_MAX_SS, l] else L[DEV_MAX_SS, l]
         L[DEV_FINAL, l] = dev
         L[DIV, l] = k if not dev <= world.divergence_bound and L[DIV, l] < 0.0 else L[DIV, l]
-
-
-@inlined_law
-def add_terms(L, l, terms):
-    """A step's terms (:func:`ddmr_cli.engine.metrics.step_terms`) added to lane ``l``'s block of sums, written out
-    (a loop over a tuple's entries would keep the lanes' loop from vectorising)."""
-    L[BLOCK + 0, l] += terms[0]
-    L[BLOCK + 1, l] += terms[1]
-    L[BLOCK + 2, l] += terms[2]
-    L[BLOCK + 3, l] += terms[3]
-    L[BLOCK + 4, l] += terms[4]
-    L[BLOCK + 5, l] += terms[5]
-    L[BLOCK + 6, l] += terms[6]
-    L[BLOCK + 7, l] += terms[7]
-    L[BLOCK + 8, l] += terms[8]
-    L[BLOCK + 9, l] += terms[9]
-    L[BLOCK + 10, l] += terms[10]
-    L[BLOCK + 11, l] += terms[11]
-    L[BLOCK + 12, l] += terms[12]
-    L[BLOCK + 13, l] += terms[13]
-    L[BLOCK + 14, l] += terms[14]
-    L[BLOCK + 15, l] += terms[15]
-    L[BLOCK + 16, l] += terms[16]
-    L[BLOCK + 17, l] += terms[17]
-    L[BLOCK + 18, l] += terms[18]
-    L[BLOCK + 19, l] += terms[19]
-    L[BLOCK + 20, l] += terms[20]
-    L[BLOCK + 21, l] += terms[21]
-    L[BLOCK + 22, l] += terms[22]
-    L[BLOCK + 23, l] += terms[23]
-    L[BLOCK + 24, l] += terms[24]
-    L[BLOCK + 25, l] += terms[25]
 
 
 @inlined_law

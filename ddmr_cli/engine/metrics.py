@@ -166,8 +166,9 @@ def estimation_error(d, diagnostics, members, wheel):
 
 @law
 def add_terms(block, terms):
-    """A step's terms (:func:`step_terms`) added to a run's block of sums, written out (a loop over a tuple's entries
-    indexes it at run time: 1.5x the step loop's time)."""
+    """A step's terms (:func:`step_terms`) added to a run's block of sums (a record's ``block``, or a lane's column
+    of the lanes loop's rows), written out (a loop over a tuple's entries indexes it at run time: 1.5x the step
+    loop's time)."""
     block[0] += terms[0]
     block[1] += terms[1]
     block[2] += terms[2]
@@ -255,11 +256,9 @@ N_METRICS = len(SEGMENT_METRICS)
 def high_frequency_fraction(u_hp2, u2, u, n):
     """[7a] ``hf_fraction`` of one wheel: ``mean(y^2) / var(u)``, y the high-passed voltage; 0 where var(u) is
     nil (a constant voltage) against the mean square, or the segment is empty (``n`` NaN)."""
-    mean_u = u / n
-    var_u = u2 / n - mean_u * mean_u
-    floor = u2 / n
-    if not floor > 1e-300 and floor == floor:  # numpy's maximum(floor, 1e-300): NaN stays NaN
-        floor = 1e-300
+    mean_u, mean_square = u / n, u2 / n
+    var_u = mean_square - mean_u * mean_u
+    floor = mean_square if mean_square > 1e-300 or math.isnan(mean_square) else 1e-300  # as numpy's maximum
     return u_hp2 / n / var_u if var_u > 1e-12 * floor else 0.0
 
 
@@ -290,22 +289,22 @@ def segment_metrics(s, dt, dev_max, dev_final, whole_run, out):
 
 
 @cached_law
-def metrics_over_sums(sums, dev_max, dev_max_ss, dev_final, dt, rows, values):
+def metrics_over_sums(sums, dev_max, dev_max_ss, dev_final, dt, rows):
     """Every run's metrics (:func:`segment_metrics`, each segment over all its steps then over its steady ones)
     into ``rows[run]``: metric ``i`` (of :data:`METRICS`, then their steady twins) of segment ``j`` at column
     ``i * n_segments + j``. ``rows`` may be the sums' own memory: a run's metrics are formed in ``values`` from
     its sums before they are written over them."""
     n_runs, n_segments = sums.shape[0], sums.shape[1] // 2
-    out = values[:N_METRICS]
+    out, values = np.empty(N_METRICS), np.empty(2 * N_METRICS * n_segments)
     for r in range(n_runs):
         for half in range(2):
             largest = dev_max[r] if half == 0 else dev_max_ss[r]
             for j in range(n_segments):
                 segment_metrics(sums[r, half * n_segments + j], dt, largest, dev_final[r], j == 0, out)
                 for i in range(N_METRICS):
-                    values[N_METRICS + (half * N_METRICS + i) * n_segments + j] = out[i]
-        for c in range(2 * N_METRICS * n_segments):
-            rows[r, c] = values[N_METRICS + c]
+                    values[(half * N_METRICS + i) * n_segments + j] = out[i]
+        for c in range(values.shape[0]):
+            rows[r, c] = values[c]
 
 
 class MetricAccumulator:
@@ -358,6 +357,5 @@ class MetricAccumulator:
         if len(names) * n > rows.shape[1]:  # pragma: no cover - METRICS outgrew SUMS: separate arrays
             rows = np.empty((self.n_runs, len(names) * n))
         with np.errstate(invalid="ignore", divide="ignore"):  # the plain-Python laws (NUMBA_DISABLE_JIT=1)
-            metrics_over_sums(self.sums, state["dev_max"], state["dev_max_ss"], state["dev_final"], self.dt, rows,
-                              np.empty(N_METRICS + len(names) * n))
+            metrics_over_sums(self.sums, state["dev_max"], state["dev_max_ss"], state["dev_final"], self.dt, rows)
         return {name: rows[:, i * n:(i + 1) * n] for i, name in enumerate(names)}
