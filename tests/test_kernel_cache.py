@@ -209,15 +209,14 @@ def test_a_cache_entry_compiled_for_another_call_is_named_and_recompiled(tmp_pat
 
 def test_one_compiled_loop_serves_every_actuator_delay(tmp_path):
     """The delay line is an array beside the run record, so its length is not part of the loop's type: a process
-    running two delays compiles one loop for both (and the loop by blocks of runs for the job without a delay, which
-    steps in lanes); a loop compiled first for another delay gives a delay's numbers bit for bit (against a process
-    that compiled for that delay alone); a later process loads both and compiles nothing. The delays change the
-    numbers (the line is used)."""
+    running no delay and two delays compiles one loop for the three (the loop by blocks of runs); a loop compiled
+    first for no delay gives a delay's numbers bit for bit (against a process that compiled for that delay alone); a
+    later process loads it and compiles nothing. The delays change the numbers (the line is used)."""
     jobs, counts = ["pid:paper_2:delay_5ms", "pid:paper_2:-", "pid:paper_2:delay_2ms"], []
     alone = _run(tmp_path / "alone", jobs[0], counts=counts)  # compiled for the 5 ms line (6 rows)
-    first_ideal = _run(tmp_path / "warm", *jobs[1:], jobs[0], counts=counts)  # lanes, then 3 rows, then 6
+    first_ideal = _run(tmp_path / "warm", *jobs[1:], jobs[0], counts=counts)  # no line (1 row), then 3 rows, then 6
     again = _run(tmp_path / "warm", *jobs[::-1], counts=counts)
-    assert counts == [(0, 1), (0, 2), (2, 0)], counts
+    assert counts == [(0, 1), (0, 1), (1, 0)], counts
     assert first_ideal[jobs[0]] == alone[jobs[0]]
     assert again == first_ideal
     assert len({tuple(values) for values in first_ideal.values()}) == 3, first_ideal

@@ -38,9 +38,9 @@ array whose fields :meth:`WheelController.state_fields` lists. Adding a controll
 subclass and its laws, plus a YAML file in ``conf/controller`` (see docs/extending.md): the engine,
 the compile cache, determinism and validation come with it.
 
-Lanes (optional). A controller whose module also defines the four laws below runs, in the paper's loop (ideal
-sensor and actuator, control at every step, explicit Euler), by blocks of runs stepped together, the runs as a
-vectorised inner axis (:mod:`ddmr_cli.engine.lanes`). The block's per-run values sit in rows ``(row, lane)`` of
+Lanes (optional). A controller whose module also defines the four laws below runs by blocks of runs stepped
+together, the runs as a vectorised inner axis (:mod:`ddmr_cli.engine.lanes`), with any sensor, actuator, control
+rate and integrator. The block's per-run values sit in rows ``(row, lane)`` of
 two arrays: ``L``, the engine's, whose first rows (:data:`LANE_ROWS`) the contract fixes, and ``C``, the
 controller's own, of ``LANE_STATE_ROWS`` rows (a constant of the controller's module). The laws compute what
 ``command`` and ``update`` do, through the same per-run definitions, for lanes ``0 .. nb - 1``:
@@ -48,7 +48,8 @@ controller's own, of ``LANE_STATE_ROWS`` rows (a constant of the controller's mo
 ``lanes_load(p, st, C, l)`` / ``lanes_store(p, st, C, l)``
     Copy run record ``st`` into lane ``l`` of ``C``, and back.
 ``lanes_command(p, C, L, nb, k)``
-    ``command`` for every lane: reads ``L[W_R]`` ... ``L[WDD_L]``, writes ``L[UC_R]``, ``L[UC_L]`` and the
+    ``command`` for every lane at control instant ``k``: reads ``L[W_R]`` ... ``L[WDD_L]`` (``W``: the measured
+    wheel speeds), writes ``L[UC_R]``, ``L[UC_L]`` and the
     diagnostic channels, channel ``c`` in rows ``L[DIAGNOSTICS + 2 c]`` (right) and ``+ 1`` (left).
 ``lanes_update(p, C, L, nb)``
     ``estimates`` (when the controller has one) and ``update`` for every lane: also reads ``L[U_R]``, ``L[U_L]``

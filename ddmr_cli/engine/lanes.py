@@ -3,23 +3,24 @@
 :mod:`ddmr_cli.engine.stepper` advances one run at a time: each step waits for the one before (a long chain of
 dependent operations) and the CPU's vector units stay idle. Here a block of up to :data:`LANES` runs keeps its state
 in rows ``(row, lane)`` of a local array, and every stage of a step is a loop over the block's lanes that LLVM
-vectorises (AVX-512: 8 runs an instruction), overlapping the runs' dependency chains. The laws are the same
-definitions the run-at-a-time loop calls (kinematics, Kanayama's outer loop, the controller's laws in their lanes
-form, :mod:`ddmr_cli.control.base`, "Lanes", the driver's limit, the OU noise, the plant (8), the metric terms,
-Euler), and compiled without fast-math flags, so a lane computes exactly the operations of one run alone: a run's
-numbers are the same in any block, in any batch, chunk or thread (tests/test_lanes.py holds them to the
-run-at-a-time loop's).
+vectorises (AVX-512: 8 runs an instruction), overlapping the runs' dependency chains. The stages are
+:func:`ddmr_cli.engine.stepper.run_steps`'s in its order, and the laws the same definitions it calls (kinematics,
+Kanayama's outer loop, the controller's laws in their lanes form, :mod:`ddmr_cli.control.base`, "Lanes", the
+driver's limit and PWM, the OU noise, the plant (8), the metric terms, Euler or RK4), compiled without fast-math
+flags, so a lane computes exactly the operations of one run alone: a run's numbers are the same in any block, in any
+batch, chunk or thread (tests/test_lanes.py holds them to the run-at-a-time loop's).
 
-What cannot be a vectorised loop runs beside the lanes, one lane at a time: the noise draws (numpy's ziggurat,
-into a buffer of :data:`DRAW_STEPS` steps per block), the wrap of the heading error (a modulo outside its fast
-path), the addition of a run's block of sums to its segments when a segment changes, the seed bands' rows on
-their grid, and the kept series.
+What cannot be a vectorised loop runs beside the lanes, one lane at a time: the noise draws (numpy's ziggurat, compiled, into
+a buffer of :data:`DRAW_STEPS` steps per block), libm's sine and cosine, the wrap of the heading error (a modulo
+outside its fast path), the addition of a run's block of sums to its segments when a segment changes, the seed
+bands' rows on their grid, the kept series, and the laws whose state is the run record's: a sensor's reading other
+than the ideal one (its encoder angles, filter and odometry) and the actuator's delay line and lag.
 
-Used where every step of the paper's loop is as :mod:`ddmr_cli.engine.stepper` writes it for this case
-(:func:`runs_in_lanes`): a controller with lanes laws, the ideal sensor and actuator, control at every plant step,
-explicit Euler, the compiled loop. Otherwise the run-at-a-time loop runs. Like the step loop, this module is a
-template: :mod:`ddmr_cli.engine.kernels` makes one copy per controller, its controller-law imports pointed at the
-controller's module.
+Used for every run of the wheel plant whose controller has lanes laws (:func:`ddmr_cli.engine.simulation.in_lanes`),
+whatever its sensor, actuator, control rate and integrator; the control instants are the same steps in every lane,
+so each is one branch for the block. Otherwise (a controller without lanes laws, the loop run as Python) the
+run-at-a-time loop runs. Like the step loop, this module is a template: :mod:`ddmr_cli.engine.kernels` makes one copy
+per controller, its controller-law imports pointed at the controller's module.
 """
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ from ddmr_cli.engine.metrics import N_SUMS, add_block, add_terms, flush, highpas
 from ddmr_cli.engine.results import record
 from ddmr_cli.model import actuator, sensor
 from ddmr_cli.model.dynamics import saturate, wheel_acceleration
-from ddmr_cli.model.integrators import euler
-from ddmr_cli.model.kinematics import deviation, frame_error, inverse, wrap_angle, wrap_in_range
+from ddmr_cli.model.integrators import euler, rk4
+from ddmr_cli.model.kinematics import deviation, frame_error, inverse, pose_error, wrap_angle, wrap_in_range
 from ddmr_cli.model.noise import ou_step
 from ddmr_cli.model.scenario import damping_scale
 
@@ -53,18 +54,20 @@ from ddmr_cli.model.scenario import damping_scale
 DRAW_STEPS = 64
 DRAW_VALUES = DRAW_STEPS * 3
 
-# the engine's rows of the block array L, after the contract's (ddmr_cli.control.base): the run's state ...
-X, Y, TH, DIST, WDP_R, WDP_L, N_R, N_L, N_U, DIV = range(LANE_ROWS, LANE_ROWS + 10)
+# the engine's rows of the block array L, after the contract's (ddmr_cli.control.base, whose W_R, W_L are the speeds
+# the controller measures): the run's state (WT_R, WT_L: the true wheel speeds) ...
+X, Y, TH, DIST, WT_R, WT_L, WDP_R, WDP_L, N_R, N_L, N_U, DIV = range(LANE_ROWS, LANE_ROWS + 12)
 # ... the metric accumulator's (ddmr_cli.engine.metrics.ACCUMULATOR_FIELDS) ...
 (UP_R, UP_L, HP_R0, HP_R1, HP_L0, HP_L1, STARTED, DEV_MAX, DEV_MAX_SS, DEV_FINAL, ZONE_SEG, ZONE_ENTRY, PHASE_SEG,
  PHASE_ENTRY, KEY) = range(DIV + 1, DIV + 16)
 BLOCK = KEY + 1  # the block of sums, N_SUMS rows
 # ... and this step's values
+# (CE_*: the pose error the controller sees, MU_*: the motor's voltage, W0_*: the true speeds before the step)
 (ZONE, PHASE, ROUGH_ZONE, ROUGH_ON, UNCERTAIN, ROLL, NEW_KEY, COS, SIN, E_X, E_Y, E_TH, DEV, A_R, A_L, D_R, D_L,
- DAMPING, DT0_R, DT0_L, DT1_R, DT1_L, PREV_R, PREV_L, HP_Y_R, HP_Y_L, COS_E, SIN_E) = range(BLOCK + N_SUMS,
-                                                                                        BLOCK + N_SUMS + 28)
+ DAMPING, DT0_R, DT0_L, DT1_R, DT1_L, PREV_R, PREV_L, HP_Y_R, HP_Y_L, CE_X, CE_Y, CE_TH, COS_E, SIN_E, MU_R, MU_L,
+ W0_R, W0_L) = range(BLOCK + N_SUMS, BLOCK + N_SUMS + 35)
 #: rows of the block array L
-ROWS = SIN_E + 1
+ROWS = W0_L + 1
 
 
 @law
@@ -94,8 +97,8 @@ def run_chunk(k0, n_steps, world, plant, params, runs, lines, controller_state, 
             m = min(DRAW_STEPS, n_steps - j0)
             standard_normals_of(streams[first:first + nb], XI[:nb, :m], 0, nb)
             for j in range(m):
-                step(k0 + j0 + j, j, world, plant, params, runs, lines, controller_state, sums, series, series_slot,
-                     bands, band_first, L, C, XI, first, nb, kept)
+                step(k0 + j0 + j, j, j0 + j, world, plant, params, runs, lines, controller_state, xs, sums, series,
+                     series_slot, bands, band_first, L, C, XI, first, nb, kept)
             j0 += m
         store(params, runs, controller_state, accumulators, L, C, first, nb)
         if k0 + n_steps == world.reference.shape[0]:  # the runs' last step: add their open blocks to their segments
@@ -109,8 +112,13 @@ def load(params, runs, controller_state, accumulators, L, C, first, nb):
     for l in range(nb):
         run, acc, st = runs[first + l], accumulators[first + l], controller_state[first + l]
         L[X, l], L[Y, l], L[TH, l], L[DIST, l] = run["x"], run["y"], run["theta"], run["distance"]
-        L[W_R, l], L[W_L, l] = run["w"][0], run["w"][1]
+        L[WT_R, l], L[WT_L, l] = run["w"][0], run["w"][1]
         L[WDP_R, l], L[WDP_L, l] = run["w_d_prev"][0], run["w_d_prev"][1]
+        # what the zero-order hold keeps between control instants
+        L[UC_R, l], L[UC_L, l], L[U_R, l], L[U_L, l] = (run["u_command"][0], run["u_command"][1], run["u_sent"][0],
+                                                        run["u_sent"][1])
+        L[SAT_R, l], L[SAT_L, l] = 1.0 if run["saturated"][0] != 0 else 0.0, 1.0 if run["saturated"][1] != 0 else 0.0
+        L[WD_R, l], L[WD_L, l] = run["w_d"][0], run["w_d"][1]
         L[N_R, l], L[N_L, l], L[N_U, l] = run["noise"][0], run["noise"][1], run["noise"][2]
         L[DIV, l] = run["divergence_step"]
         L[UP_R, l], L[UP_L, l] = acc["u_prev"][0], acc["u_prev"][1]
@@ -134,7 +142,7 @@ def store(params, runs, controller_state, accumulators, L, C, first, nb):
     for l in range(nb):
         run, acc, st = runs[first + l], accumulators[first + l], controller_state[first + l]
         run["x"], run["y"], run["theta"], run["distance"] = L[X, l], L[Y, l], L[TH, l], L[DIST, l]
-        run["w"][0], run["w"][1] = L[W_R, l], L[W_L, l]
+        run["w"][0], run["w"][1] = L[WT_R, l], L[WT_L, l]
         run["w_d_prev"][0], run["w_d_prev"][1] = L[WDP_R, l], L[WDP_L, l]
         run["noise"][0], run["noise"][1], run["noise"][2] = L[N_R, l], L[N_L, l], L[N_U, l]
         run["divergence_step"] = int(L[DIV, l])
@@ -159,12 +167,11 @@ def store(params, runs, controller_state, accumulators, L, C, first, nb):
 
 
 @inlined_law
-def step(k, j, world, plant, params, runs, lines, controller_state, sums, series, series_slot, bands, band_first,
-         L, C, XI, first, nb, kept):
-    """Step ``k`` of the block's lanes (``XI[l, j]``: lane l's normals of this step): the stages of
-    :func:`ddmr_cli.engine.stepper.run_steps` for the paper's loop, each over the lanes."""
-    x_r, y_r, th_r, v_r, om_r = (world.reference[k, 0], world.reference[k, 1], world.reference[k, 2],
-                                 world.reference[k, 3], world.reference[k, 4])
+def step(k, j, jc, world, plant, params, runs, lines, controller_state, xs, sums, series, series_slot, bands,
+         band_first, L, C, XI, first, nb, kept):
+    """Step ``k`` of the block's lanes (the ``jc``-th of its chunk; ``XI[l, j]``: lane l's normals of this step): the
+    stages of :func:`ddmr_cli.engine.stepper.run_steps`, each over the lanes."""
+    x_r, y_r, th_r = world.reference[k, 0], world.reference[k, 1], world.reference[k, 2]
     terrain_and_phase(k, world, L, nb)
     # the step's segments (docs/model.md §7); a run whose segments changed adds its block to them (rarely)
     zone_base, phase_base = 1, world.phase_base
@@ -183,8 +190,8 @@ def step(k, j, world, plant, params, runs, lines, controller_state, sums, series
                 if L[KEY, l] >= 0.0:
                     add_block(sums, first + l, int(L[KEY, l]), L[BLOCK:BLOCK + N_SUMS, l])
                 L[KEY, l] = L[NEW_KEY, l]
-    # the true pose error (2) and deviation; a heading error outside wrap_angle's fast path wrapped one lane at a
-    # time after (its modulo is a call: rare on a path, never on the paper's)
+    # the true pose error (2) and deviation, for the metrics; a heading error outside wrap_angle's fast path wrapped
+    # one lane at a time after (its modulo is a call: rare on a path, never on the paper's)
     for l in range(nb):  # libm's, as the run-at-a-time loop's (one call a lane: the same numbers to the bit)
         L[COS, l], L[SIN, l] = math.cos(L[TH, l]), math.sin(L[TH, l])
     outside = False
@@ -197,27 +204,10 @@ def step(k, j, world, plant, params, runs, lines, controller_state, sums, series
     if outside:
         for l in range(nb):
             L[E_TH, l] = wrap_angle(th_r - L[TH, l])
-    # Kanayama (3), inverse kinematics (4)-(5), w_d' by backward difference (4)
-    inv_dt = 1.0 / world.control_dt
-    for l in range(nb):
-        L[COS_E, l], L[SIN_E, l] = math.cos(L[E_TH, l]), math.sin(L[E_TH, l])
-    for l in range(nb):
-        v_d, om_d = kanayama_of(world.gains, L[E_X, l], L[E_Y, l], L[COS_E, l], L[SIN_E, l], v_r, om_r)
-        wd_R, wd_L = inverse(v_d, om_d, plant.wheel_radius, plant.half_track)
-        L[WDD_R, l] = 0.0 if k == 0 else (wd_R - L[WDP_R, l]) * inv_dt
-        L[WDD_L, l] = 0.0 if k == 0 else (wd_L - L[WDP_L, l]) * inv_dt
-        L[WD_R, l], L[WD_L, l], L[WDP_R, l], L[WDP_L, l] = wd_R, wd_L, wd_R, wd_L
-    # the wheel controller (6), the driver's limit, the controller's update
-    controller_lanes_command(params, C, L, nb, k)
-    for l in range(nb):
-        u_R, sat_R = saturate(L[UC_R, l], plant.max_voltage)
-        u_L, sat_L = saturate(L[UC_L, l], plant.max_voltage)
-        L[U_R, l], L[U_L, l] = u_R, u_L
-        L[SAT_R, l], L[SAT_L, l] = 1.0 if sat_R else 0.0, 1.0 if sat_L else 0.0
-    controller_lanes_update(params, C, L, nb)
-    if k == 0:
-        for l in range(nb):
-            actuator.start(world.actuator, runs[first + l], lines[first + l], L[U_R, l], L[U_L, l])
+    m = world.control_steps
+    if k % m == 0:  # a control instant (the same steps in every lane); between them all of it is held
+        control_instant(k, k // m, jc, world, plant, params, runs, lines, xs, L, C, first, nb)
+    motor_voltage(k, world.actuator, runs, lines, L, first, nb)
     # this step's disturbances (5) and the plant's acceleration (8)
     for l in range(nb):
         n_R = ou_step(world.ou_a[0], world.ou_b[0], L[N_R, l], XI[l, j, 0])
@@ -228,7 +218,8 @@ def step(k, j, world, plant, params, runs, lines, controller_state, sums, series
         b = damping_scale(world.uncertainty, n_u) if uncertain else 1.0
         rough = L[ROUGH_ZONE, l] * L[ROUGH_ON, l]
         L[A_R, l], L[A_L, l], L[D_R, l], L[D_L, l] = wheel_acceleration(
-            plant, L[W_R, l], L[W_L, l], L[U_R, l], L[U_L, l], b, uncertain, -n_R * rough, -n_L * rough, L[ROLL, l])
+            plant, L[WT_R, l], L[WT_L, l], L[MU_R, l], L[MU_L, l], b, uncertain, -n_R * rough, -n_L * rough,
+            L[ROLL, l])
         L[DAMPING, l] = b
     estimation_errors(world.estimation, L, nb)
     metrics(k, world, plant, L, nb)
@@ -237,16 +228,97 @@ def step(k, j, world, plant, params, runs, lines, controller_state, sums, series
         for l in range(nb):
             s_R, s_L = surface_of(world.surface, L, l)
             band_row(bands[first + l, k // grid - band_first], L[DEV, l], L[E_X, l], L[E_Y, l], L[E_TH, l],
-                     L[U_R, l], L[U_L, l], s_R, s_L)
+                     L[MU_R, l], L[MU_L, l], s_R, s_L)
     if kept:
         for l in range(nb):
             slot = series_slot[first + l]
             if slot >= 0:
                 keep_step(k, world, controller_state[first + l], series[slot, k], L, l, x_r, y_r, th_r)
-    for l in range(nb):  # integrate the plant and the pose (4)
-        L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[W_R, l], L[W_L, l] = euler(
-            plant, world.dt, L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[W_R, l], L[W_L, l], L[COS, l], L[SIN, l],
-            L[A_R, l], L[A_L, l])
+    integrate(world, plant, runs, L, first, nb)
+
+
+@inlined_law
+def control_instant(k, kc, jc, world, plant, params, runs, lines, xs, L, C, first, nb):
+    """The control instant ``kc`` at plant step ``k`` (the ``jc``-th of the chunk), as
+    :func:`ddmr_cli.engine.stepper.run_steps` takes it: the sensor's reading (the controller's speeds into the
+    contract's ``W_R``, ``W_L``, its pose error into ``CE_*``); the outer loop (3), inverse kinematics (4)-(5) and
+    ``w_d'`` by backward difference over the control period (4); the wheel controller (6), the driver's limit and
+    PWM, the controller's estimates and update; at the first, the actuator's start."""
+    sen, act = world.sensor, world.actuator
+    if sen.ideal:
+        for l in range(nb):
+            L[W_R, l], L[W_L, l] = L[WT_R, l], L[WT_L, l]
+            L[CE_X, l], L[CE_Y, l], L[CE_TH, l] = L[E_X, l], L[E_Y, l], L[E_TH, l]
+    else:  # the sensor's state is in the run records: one lane at a time
+        x_r, y_r, th_r = world.reference[k, 0], world.reference[k, 1], world.reference[k, 2]
+        for l in range(nb):
+            r = first + l
+            L[W_R, l], L[W_L, l], m_x, m_y, m_th = sensor.measure(
+                sen, runs[r], L[X, l], L[Y, l], L[TH, l], L[WT_R, l], L[WT_L, l], xs[r, jc if sen.noisy else 0],
+                plant.wheel_radius, plant.half_track)
+            L[CE_X, l], L[CE_Y, l], L[CE_TH, l] = pose_error(m_x, m_y, m_th, x_r, y_r, th_r)
+    v_r, om_r = world.reference[k, 3], world.reference[k, 4]
+    inv_dt = 1.0 / world.control_dt
+    for l in range(nb):
+        L[COS_E, l], L[SIN_E, l] = math.cos(L[CE_TH, l]), math.sin(L[CE_TH, l])
+    for l in range(nb):
+        v_d, om_d = kanayama_of(world.gains, L[CE_X, l], L[CE_Y, l], L[COS_E, l], L[SIN_E, l], v_r, om_r)
+        wd_R, wd_L = inverse(v_d, om_d, plant.wheel_radius, plant.half_track)
+        L[WDD_R, l] = 0.0 if kc == 0 else (wd_R - L[WDP_R, l]) * inv_dt
+        L[WDD_L, l] = 0.0 if kc == 0 else (wd_L - L[WDP_L, l]) * inv_dt
+        L[WD_R, l], L[WD_L, l], L[WDP_R, l], L[WDP_L, l] = wd_R, wd_L, wd_R, wd_L
+    controller_lanes_command(params, C, L, nb, kc)
+    for l in range(nb):
+        u_R, sat_R = saturate(L[UC_R, l], plant.max_voltage)
+        u_L, sat_L = saturate(L[UC_L, l], plant.max_voltage)
+        L[U_R, l], L[U_L, l] = u_R, u_L
+        L[SAT_R, l], L[SAT_L, l] = 1.0 if sat_R else 0.0, 1.0 if sat_L else 0.0
+    if act.pwm:
+        for l in range(nb):
+            L[U_R, l], L[U_L, l] = actuator.pwm(L[U_R, l], act.pwm_step), actuator.pwm(L[U_L, l], act.pwm_step)
+    controller_lanes_update(params, C, L, nb)
+    if k == 0:
+        for l in range(nb):
+            actuator.start(act, runs[first + l], lines[first + l], L[U_R, l], L[U_L, l])
+
+
+@inlined_law
+def motor_voltage(k, act, runs, lines, L, first, nb):
+    """The motor's voltage ``MU_*``: the held command ``U_*``, delayed and lagged (:func:`ddmr_cli.model.actuator.apply`,
+    one lane at a time: the delay line and the driver's output are the run's), or the command itself."""
+    if act.delay_steps > 0 or act.lagged:
+        for l in range(nb):
+            L[MU_R, l], L[MU_L, l] = actuator.apply(act, runs[first + l], lines[first + l], k, L[U_R, l], L[U_L, l])
+    else:
+        for l in range(nb):
+            L[MU_R, l], L[MU_L, l] = L[U_R, l], L[U_L, l]
+
+
+@inlined_law
+def integrate(world, plant, runs, L, first, nb):
+    """The plant and the pose one step on (4), by explicit Euler or RK4 (the inputs held over the step); the
+    encoders' true wheel angles (one lane at a time: they are the run records')."""
+    encoder = world.sensor.encoder
+    if encoder:
+        for l in range(nb):
+            L[W0_R, l], L[W0_L, l] = L[WT_R, l], L[WT_L, l]
+    if world.rk4:
+        for l in range(nb):
+            rough = L[ROUGH_ZONE, l] * L[ROUGH_ON, l]
+            L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[WT_R, l], L[WT_L, l] = rk4(
+                plant, world.dt, L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[WT_R, l], L[WT_L, l], L[COS, l],
+                L[SIN, l], L[A_R, l], L[A_L, l], L[MU_R, l], L[MU_L, l], L[DAMPING, l], L[UNCERTAIN, l] != 0.0,
+                -L[N_R, l] * rough, -L[N_L, l] * rough, L[ROLL, l])
+    else:
+        for l in range(nb):
+            L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[WT_R, l], L[WT_L, l] = euler(
+                plant, world.dt, L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[WT_R, l], L[WT_L, l], L[COS, l],
+                L[SIN, l], L[A_R, l], L[A_L, l])
+    if encoder:
+        for l in range(nb):
+            angle = runs[first + l]["wheel_angle"]
+            angle[0] = sensor.wheel_angle(angle[0], L[W0_R, l], L[WT_R, l], world.dt)
+            angle[1] = sensor.wheel_angle(angle[1], L[W0_L, l], L[WT_L, l], world.dt)
 
 
 @inlined_law
@@ -313,7 +385,7 @@ def metrics(k, world, plant, L, nb):
     last deviations, the divergence rule."""
     t, hp, hp_zi, settled = k * world.dt, world.hp, world.hp_zi, k >= world.settle_steps
     for l in range(nb):  # the voltage's last value and high-pass, the run's first step starting both at u
-        u_R, u_L = L[U_R, l], L[U_L, l]
+        u_R, u_L = L[MU_R, l], L[MU_L, l]
         first_step = L[STARTED, l] == 0.0
         L[PREV_R, l] = u_R if first_step else L[UP_R, l]
         L[PREV_L, l] = u_L if first_step else L[UP_L, l]
@@ -327,8 +399,8 @@ def metrics(k, world, plant, L, nb):
     for l in range(nb):  # the step's terms of the sums
         s_R, s_L = surface_of(world.surface, L, l)
         add_terms(L[BLOCK:BLOCK + N_SUMS, l], step_terms(t, L[DEV, l], L[E_X, l], L[E_Y, l], L[E_TH, l],
-                                   L[SAT_R, l] + L[SAT_L, l] != 0.0, L[U_R, l], L[U_L, l], L[PREV_R, l], L[PREV_L, l],
-                                   L[W_R, l], L[W_L, l], L[DT0_R, l], L[DT0_L, l], L[DT1_R, l], L[DT1_L, l], s_R, s_L,
+                                   L[SAT_R, l] + L[SAT_L, l] != 0.0, L[MU_R, l], L[MU_L, l], L[PREV_R, l], L[PREV_L, l],
+                                   L[WT_R, l], L[WT_L, l], L[DT0_R, l], L[DT0_L, l], L[DT1_R, l], L[DT1_L, l], s_R, s_L,
                                    L[HP_Y_R, l], L[HP_Y_L, l], plant.back_emf_constant, plant.armature_resistance))
     for l in range(nb):  # the largest and last deviations, the divergence rule
         dev = L[DEV, l]
@@ -347,7 +419,7 @@ def keep_step(k, world, st, row, L, l, x_r, y_r, th_r):
         diagnostics[c, 0], diagnostics[c, 1] = L[DIAGNOSTICS + 2 * c, l], L[DIAGNOSTICS + 2 * c + 1, l]
     s_R, s_L = surface_of(world.surface, L, l)
     record(row, k * world.dt, L[X, l], L[Y, l], L[TH, l], x_r, y_r, th_r, L[E_X, l], L[E_Y, l], L[E_TH, l],
-           L[DEV, l], L[DIST, l], L[W_R, l], L[W_L, l], L[WD_R, l], L[WD_L, l], L[U_R, l], L[U_L, l], L[UC_R, l],
+           L[DEV, l], L[DIST, l], L[WT_R, l], L[WT_L, l], L[WD_R, l], L[WD_L, l], L[MU_R, l], L[MU_L, l], L[UC_R, l],
            L[UC_L, l], s_R, s_L, L[D_R, l], L[D_L, l], L[ROUGH_ZONE, l] * L[ROUGH_ON, l], L[DAMPING, l],
            int(L[ZONE, l]), diagnostics, world.recorded)
 

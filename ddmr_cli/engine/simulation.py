@@ -367,11 +367,9 @@ class _Batch:
 
 def in_lanes(sim: Simulation) -> bool:
     """Whether the runs step by blocks, the runs as a vectorised inner axis (:mod:`ddmr_cli.engine.lanes`): the
-    compiled loop, the wheel plant, a controller with lanes laws (:meth:`WheelController.runs_in_lanes`), the ideal
-    sensor and actuator, control at every plant step, explicit Euler: the paper's loop."""
-    act = sim.actuator
-    return (jit_enabled() and sim.plant is None and sim.controller.runs_in_lanes() and sim.sensor.kind == "ideal"
-            and not (act.delay or act.lag or act.pwm_bits) and sim.control_steps == 1 and sim.integrator == "euler")
+    compiled loop, the wheel plant and a controller with lanes laws (:meth:`WheelController.runs_in_lanes`), whatever
+    the sensor, actuator, control rate and integrator."""
+    return jit_enabled() and sim.plant is None and sim.controller.runs_in_lanes()
 
 
 def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, progress, compiling,
@@ -509,7 +507,8 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     lanes : bool, optional
         Step the runs by blocks, vectorised (:mod:`ddmr_cli.engine.lanes`), or one at a time
         (:mod:`ddmr_cli.engine.stepper`); by default by blocks wherever :func:`in_lanes`. The same numbers.
-        ``True`` where :func:`in_lanes` is false raises ValueError (the block loop runs the paper's loop only).
+        ``True`` where :func:`in_lanes` is false raises ValueError (a controller without lanes laws, the loop run as
+        Python, an external plant).
 
     Returns
     -------
@@ -522,7 +521,7 @@ def simulate(sim: Simulation, seeds: Sequence[int], keep_series: Sequence[int] =
     by_blocks = in_lanes(sim)
     if lanes and not by_blocks:
         raise ValueError("simulate(lanes=True): this configuration does not run by blocks of runs (engine/lanes.py: "
-                         "the compiled paper's loop with a controller's lanes laws only)")
+                         "the compiled loop of the wheel plant with a controller's lanes laws only)")
     by_blocks = by_blocks and lanes is not False
     bit_generators.require_compiled_draws()
     started = time.perf_counter()
