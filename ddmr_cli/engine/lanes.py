@@ -10,11 +10,12 @@ driver's limit and PWM, the OU noise, the plant (8), the metric terms, Euler or 
 flags, so a lane computes exactly the operations of one run alone: a run's numbers are the same in any block, in any
 batch, chunk or thread (tests/test_lanes.py holds them to the run-at-a-time loop's).
 
-What cannot be a vectorised loop runs beside the lanes, one lane at a time: the noise draws (numpy's ziggurat, compiled, into
-a buffer of :data:`DRAW_STEPS` steps per block), libm's sine and cosine, the wrap of the heading error (a modulo
-outside its fast path), the addition of a run's block of sums to its segments when a segment changes, the seed
-bands' rows on their grid, the kept series, and the laws whose state is the run record's: a sensor's reading other
-than the ideal one (its encoder angles, filter and odometry) and the actuator's delay line and lag.
+What cannot be a vectorised loop runs beside the lanes, one lane at a time: the noise draws (numpy's ziggurat,
+compiled, into a buffer of :data:`DRAW_STEPS` steps per block), libm's sine and cosine, the wrap of the heading
+error (a modulo outside its fast path), the addition of a run's block of sums to its segments when a segment
+changes, the seed bands' rows on their grid, the kept series, and the laws whose state is the run record's: a
+sensor's reading other than the ideal one (its encoder angles, filter and odometry) and the actuator's delay line
+and lag.
 
 Used for every run of the wheel plant whose controller has lanes laws (:func:`ddmr_cli.engine.simulation.in_lanes`),
 whatever its sensor, actuator, control rate and integrator; the control instants are the same steps in every lane,
@@ -284,8 +285,9 @@ def control_instant(k, kc, jc, world, plant, params, runs, lines, xs, L, C, firs
 
 @inlined_law
 def motor_voltage(k, act, runs, lines, L, first, nb):
-    """The motor's voltage ``MU_*``: the held command ``U_*``, delayed and lagged (:func:`ddmr_cli.model.actuator.apply`,
-    one lane at a time: the delay line and the driver's output are the run's), or the command itself."""
+    """The motor's voltage ``MU_*``: the held command ``U_*``, delayed and lagged
+    (:func:`ddmr_cli.model.actuator.apply`, one lane at a time: the delay line and the driver's output are the run's),
+    or the command itself."""
     if act.delay_steps > 0 or act.lagged:
         for l in range(nb):
             L[MU_R, l], L[MU_L, l] = actuator.apply(act, runs[first + l], lines[first + l], k, L[U_R, l], L[U_L, l])

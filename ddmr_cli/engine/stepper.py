@@ -12,10 +12,10 @@ seed bands, recorded if the run's series is kept, and integrated (explicit Euler
 disturbances held over the step. With the ideal sensor and actuator and control at every step this is the
 paper's loop, number for number.
 
-Runs are independent scalar loops (no BLAS, nothing couples runs), so seed k gives bit-identical numbers alone
-or inside any batch, in any chunking and with any thread count. A controller with lanes laws steps its runs by
-blocks instead (:mod:`ddmr_cli.engine.lanes`, the same stages and laws over a block's runs); this loop runs the
-others, the loop as Python, and is what tests/test_lanes.py holds the blocks to. This module is the template of the compiled
+Runs are independent scalar loops (no BLAS, nothing couples runs), so seed k gives bit-identical numbers alone or
+inside any batch, in any chunking and with any thread count. A controller with lanes laws steps its runs by blocks
+instead (:mod:`ddmr_cli.engine.lanes`, the same stages and laws over a block's runs); this loop runs the others, the
+loop as Python, and is what tests/test_lanes.py holds the blocks to. This module is the template of the compiled
 loop: its controller laws come from the slot :mod:`ddmr_cli.engine.controller_slot`, and
 :mod:`ddmr_cli.engine.kernels` makes one copy per controller whose only change is those four import lines, pointed
 at the controller's module, and compiles it (cached on disk). Without numba the same copy runs as Python.
