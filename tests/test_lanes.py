@@ -82,6 +82,27 @@ def test_lanes_give_the_run_at_a_time_numbers(overrides):
     _assert_same(a, b)
 
 
+@pytest.mark.parametrize("overrides", [["control.rate=250"], ["+realism=realistic_driver"]], ids=" ".join)
+def test_chunks_cut_between_control_instants_start_from_the_runs_holds(monkeypatch, overrides):
+    """Chunks of 67 steps (no multiple of the control period of 4 steps), two blocks of runs: a chunk that starts
+    between control instants starts its lanes from what each run's record holds (the command, the applied voltage,
+    the saturation flags, the wheel-speed reference), not from what the block's rows held before, and gives the
+    run-at-a-time loop's numbers."""
+    from ddmr_cli.engine import simulation as simulation_module
+
+    sim = paper_simulation("controller=smc_ndo", *overrides, "simulation.duration=3.5", *SETTLE)
+    seeds, kept = range(LANES + 7), [0, LANES + 3]
+    a = simulate(sim, seeds, threads=1, lanes=False, keep_series=kept)
+    assert a.bands["t"][1] == pytest.approx(2 * sim.dt)  # a band grid point every other step
+    per_run_step = 8 * 8 // 2  # eight band channels every other step
+    monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 67 * len(seeds) * per_run_step)
+    monkeypatch.setattr(simulation_module, "MIN_CHUNK_STEPS", 1)
+    done = []
+    b = simulate(sim, seeds, threads=1, lanes=True, keep_series=kept, progress=lambda k, n: done.append(k))
+    assert done[:2] == [67, 134]
+    _assert_same(a, b)
+
+
 def test_lanes_agree_on_diverging_runs():
     free = simulate(paper_simulation("controller=smc_ndo", "simulation.duration=1.0"), range(12), threads=1)
     bound = float(np.median(free.metric("deviation_max")))  # some runs, not all, go past it
