@@ -33,7 +33,7 @@ from pathlib import Path
 
 import pytest
 
-from ddmr_cli.compiled import AVAILABLE
+from ddmr_cli.compiled import AVAILABLE, jit_enabled
 
 pytestmark = pytest.mark.skipif(not AVAILABLE, reason="the disk cache is numba's")
 
@@ -547,3 +547,29 @@ def test_a_process_that_loads_its_step_loop_runs_it_without_numbas_compiler(tmp_
         runs.append(proc.stdout.strip().rsplit(" ", 1))
     (cold, cold_rules), (warm, warm_rules) = runs
     assert warm == cold and (cold_rules, warm_rules) == ("True", "False")
+
+
+@pytest.mark.skipif(not jit_enabled(), reason="compiled code only (numba missing or NUMBA_DISABLE_JIT set)")
+def test_the_entry_point_past_numbas_typing_only_for_calls_of_the_compiled_types():
+    """kernels.entry_point hands the engine the compiled signature's entry point (no typing at every call) only when
+    every call's arguments have the types the signature was compiled for; otherwise numba's dispatcher, which types
+    them (and compiles or refuses)."""
+    import numpy as np
+    from numba import njit
+
+    from ddmr_cli.engine.kernels import entry_point
+
+    @njit
+    def first_plus(a, k):
+        return a[0] + k
+
+    a = np.ones(3)
+    first_plus(a, 1)
+    direct = entry_point(first_plus, [(a, 1), (np.zeros(3), 2), (a, 3)])
+    assert direct is not first_plus and direct(np.full(2, 5.0), 2) == 7.0
+    assert entry_point(first_plus, [(a, 1), (np.ones(6)[::2], 2)]) is first_plus  # a strided array: another type
+    assert entry_point(first_plus, [(a, 1), (a, 2.0)]) is first_plus  # a float where the int was
+    assert entry_point(first_plus, [(a, 1), (a, 2 ** 70)]) is first_plus  # an int past 64 bits
+    assert entry_point(first_plus, [(a, 1), (a,)]) is first_plus
+    first_plus(a, 1.5)  # a second signature: the dispatcher chooses
+    assert entry_point(first_plus, [(a, 1)]) is first_plus

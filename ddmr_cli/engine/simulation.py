@@ -25,7 +25,7 @@ from ddmr_cli.control.outer_loop import Kanayama
 from ddmr_cli.engine.bands import BAND_CHANNELS, BandAccumulator
 from ddmr_cli.engine.batch import HOLD_FIELDS, RUN_FIELDS, World
 from ddmr_cli.engine.kernels import (check_single_signature, compiled_copy, compiled_external_step,
-                                     compiled_run_chunk)
+                                     compiled_run_chunk, entry_point)
 from ddmr_cli.engine.metrics import ACCUMULATOR_FIELDS, MetricAccumulator, estimation_membership
 from ddmr_cli.engine.pipeline import run_chunks
 from ddmr_cli.model.noise import NoiseStreams, SensorNoise, ou_coefficients
@@ -397,10 +397,12 @@ def _run_compiled(b: _Batch, law_module: str, n_steps: int, n_threads: int, prog
         loop = compiled_run_chunk(law_module, args[0] + (0, n_runs), compiling)
     else:
         loop = compiled_copy(LANES_TEMPLATE, law_module, "run_chunk", args[0] + (0, n_runs), compiling)
+    # past numba's typing at every call: each chunk's and each block's arguments checked once (they vary apart)
+    call = entry_point(loop, [a + blocks[0] for a in args] + [args[0] + block for block in blocks[1:]])
 
     def step(i: int, block: int) -> None:  # this block's sensor normals of chunk i, then its steps
         b.draw(plan[i][1], sensor[i], blocks[block])
-        loop(*args[i], *blocks[block])
+        call(*args[i], *blocks[block])
 
     def reduce(i: int, part: int) -> None:  # the bands of a range of chunk i's grid points, over every run
         band_buffer, first, parts = bands[i]
