@@ -407,14 +407,16 @@ def entry_point(function, calls: list[tuple]):
     overloads = getattr(function, "overloads", None)
     if not calls or not overloads or len(overloads) != 1:
         return function
-    first = calls[0]
+    first, first_prints = calls[0], {}  # the first call's fingerprints, by position, each taken once
     for call in calls[1:]:
         if len(call) != len(first):
             return function
-        for arg, first_arg in zip(call, first):
-            if arg is not first_arg:
+        for i, arg in enumerate(call):
+            if arg is not first[i]:
+                if i not in first_prints:
+                    first_prints[i] = _fingerprint(first[i])
                 fingerprint = _fingerprint(arg)
-                if fingerprint is None or fingerprint != _fingerprint(first_arg):
+                if fingerprint is None or fingerprint != first_prints[i]:
                     return function
     [compiled] = overloads.values()
     return compiled.entry_point
@@ -429,5 +431,4 @@ def check_single_signature(function) -> None:
 
 
 __all__ = ["cache_dir", "call_identity", "check_single_signature", "compiled_copy", "compiled_external_step",
-           "entry_point",
-           "compiled_run_chunk", "copy_for", "inlined_sources", "sources_digest", "stepper_for"]
+           "compiled_run_chunk", "copy_for", "entry_point", "inlined_sources", "sources_digest", "stepper_for"]
