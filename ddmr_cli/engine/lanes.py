@@ -315,8 +315,9 @@ def integrate(world, plant, runs, L, first, nb):
 
 @law
 def readings(sen, jc, x_r, y_r, th_r, wheel_radius, half_track, runs, xs, L, first, nb):
-    """A sensor's reading other than the ideal one, one lane at a time (its state is the run record's): the
-    controller's speeds into ``W_R``, ``W_L``, its pose error into ``CE_*``."""
+    """A sensor's reading other than the ideal one (docs/model.md §10, :func:`ddmr_cli.model.sensor.measure`), one
+    lane at a time (its state is the run record's): the controller's speeds into ``W_R``, ``W_L``, its pose error (2)
+    into ``CE_*``."""
     for l in range(nb):
         r = first + l
         L[W_R, l], L[W_L, l], m_x, m_y, m_th = sensor.measure(
@@ -327,14 +328,16 @@ def readings(sen, jc, x_r, y_r, th_r, wheel_radius, half_track, runs, xs, L, fir
 
 @law
 def applied(k, act, runs, lines, L, first, nb):
-    """The motor's voltage through the run's delay line and driver lag, one lane at a time."""
+    """The motor's voltage through the run's delay line and driver lag (docs/model.md §10,
+    :func:`ddmr_cli.model.actuator.apply`), one lane at a time."""
     for l in range(nb):
         L[MU_R, l], L[MU_L, l] = actuator.apply(act, runs[first + l], lines[first + l], k, L[U_R, l], L[U_L, l])
 
 
 @law
 def rk4_lanes(plant, dt, L, nb):
-    """The plant and the pose one step on by RK4, the inputs held over the step."""
+    """The plant and the pose one step on by RK4 (docs/model.md §4 [4b], :func:`ddmr_cli.model.integrators.rk4`),
+    the inputs held over the step."""
     for l in range(nb):
         rough = L[ROUGH_ZONE, l] * L[ROUGH_ON, l]
         L[X, l], L[Y, l], L[TH, l], L[DIST, l], L[WT_R, l], L[WT_L, l] = rk4(
@@ -345,7 +348,8 @@ def rk4_lanes(plant, dt, L, nb):
 
 @law
 def wheel_angles(dt, runs, L, first, nb):
-    """The encoders' true wheel angles one step on, one lane at a time (they are the run records')."""
+    """The encoders' true wheel angles one step on (docs/model.md §10, :func:`ddmr_cli.model.sensor.wheel_angle`),
+    one lane at a time (they are the run records')."""
     for l in range(nb):
         angle = runs[first + l]["wheel_angle"]
         angle[0] = sensor.wheel_angle(angle[0], L[W0_R, l], L[WT_R, l], dt)
