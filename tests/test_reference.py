@@ -1,7 +1,7 @@
 """The benchmark's reference kernel (ddmr_cli/bench/reference.py) computes the engine's numbers.
 
 ``ddmr bench`` prints the engine's throughput as a ratio to this hand-fused kernel's, so the kernel must run the
-same loop on the same noise: per seed, its whole-run metrics equal the engine's to 1e-12 relative, in both of its
+same loop on the same noise: per seed, its whole-run metrics equal the engine's to 1e-12 relative, in each of its
 layouts. It refuses, naming the key, every configuration it does not run.
 """
 
@@ -34,6 +34,18 @@ def test_the_reference_computes_the_engines_metrics(engine_run, layout):
     np.testing.assert_array_equal(ref["diverged"], result.diverged)
     for name in METRICS:
         np.testing.assert_allclose(ref[name], result.metric(name), rtol=1e-12, atol=0, err_msg=name)
+
+
+def test_the_exact_layout_is_the_scalar_loop_in_lanes():
+    """The exact layout (the bench's yardstick at equal work) does the scalar layout's operations in its order, a
+    lane at a time: the same metrics to the bit here (1e-15 relative); the lanes layout's fdlibm sine and cosine and
+    fused multiply-adds move them by about 1e-13 over 15 s."""
+    sim = paper_simulation("controller=smc_ndo_nno", "simulation.duration=15")
+    seeds = range(35)  # a full block of lanes and a partial one
+    exact, scalar = reference_metrics(sim, seeds, "exact"), reference_metrics(sim, seeds, "scalar")
+    np.testing.assert_array_equal(exact["diverged"], scalar["diverged"])
+    for name in METRICS:
+        np.testing.assert_allclose(exact[name], scalar[name], rtol=1e-15, atol=0, err_msg=name)
 
 
 def test_a_seed_gives_the_same_numbers_alone_or_in_a_block_of_runs():

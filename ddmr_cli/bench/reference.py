@@ -23,7 +23,7 @@ stream: 3 normals for the OU initial state, then 3 per step), drawn here by bloc
 (:func:`~ddmr_cli.bit_generators.standard_normals_of`, where the engine draws them one at a time as it steps), so
 the kernel reads the very same streams; drawing them is part of the timed work (it is of the engine's too).
 
-Two layouts of the same loop (``layout=``):
+Three layouts of the same loop (``layout=``):
 
 ``"lanes"`` (the default, and the faster: the one ``ddmr bench`` times)
     Runs are the inner, SIMD axis: blocks of :data:`BLOCK` runs step together, the state of a block in one local
@@ -36,6 +36,15 @@ Two layouts of the same loop (``layout=``):
     rounding (about 1e-13 relative in the metrics), not to the bit, and a seed gives the same bits alone or in
     any batch. A neuron whose exponent is below -746 for every run of the block (its phi is exactly 0, as in the
     engine) is skipped.
+``"exact"`` (the yardstick at equal work: ``ddmr bench`` holds the engine to it)
+    The lanes layout computing the engine's numbers: libm's ``sin`` and ``cos`` called a lane at a time, as the
+    engine calls them, and no fast-math flag, so that every operation is the scalar layout's (its metrics equal the
+    scalar layout's bit for bit on the reference machine; tests hold them to 1e-15). The lanes layout's fdlibm
+    kernels and fused multiply-adds are what the engine cannot take: a last-bit difference in the heading grows
+    through the sliding mode's switching to 1e-8 relative in some of its per-seed metrics over 15 s, past the
+    regression fixture (docs/model.md §4). Measured (SMC-NDO, 1,000 runs of 1 s, one core, ns per run and step):
+    lanes 25.0, lanes without fused multiply-adds 31.3, libm's sine and cosine with them 40.7, exact 44.2; the
+    engine without its seed bands 55.5 (SMC-NDO-NNO: 38.2, 56.0, 57.5, 62.2 and 86.9).
 ``"scalar"``
     One run at a time, its state in registers, libm's ``cos`` and ``sin`` and the network's
     :func:`~ddmr_cli.model.elementary.exp_neg` where the engine calls them, the same operations in the same order
@@ -53,7 +62,9 @@ overlapping the runs' dependency chains; its block size matters little (8 runs: 
 Fast math: the lanes layout is compiled with ``fastmath={'contract'}`` alone (LLVM may fuse a multiply and an add
 into one FMA: its kernel is 15-25 % faster, its sin, cos and exp stay within 1 ulp, its metrics within 3e-13 of
 the engine's over 50 seeds of 15 s); not the flags that assume no NaN or inf (a diverging run is detected by its
-NaN deviation) nor reassociation. The scalar layout uses none.
+NaN deviation) nor reassociation. The exact and scalar layouts use none. The two lanes layouts are one body
+(``_lanes_steps``, inlined by numba into each layout's kernel with the layout's flags); ``libm`` is a constant of
+each, so LLVM keeps only its branch.
 """
 
 from __future__ import annotations
@@ -100,7 +111,7 @@ else:  # pragma: no cover - numba is a dependency; without it the kernels run as
     _lanes_kernel = _inline = _kernel
 
 #: the layouts of the kernel (module docstring)
-LAYOUTS = ("lanes", "scalar")
+LAYOUTS = ("lanes", "exact", "scalar")
 #: runs per block of the lanes layout (the row length of its local state array: 8 is 10 % slower, 64 the same)
 BLOCK = 32
 #: the metrics :func:`reference_metrics` returns per seed (as :data:`ddmr_cli.engine.catalog.METRICS` defines them)
@@ -252,19 +263,26 @@ def wrap(angle):
 # The lanes layout: one loop over a block's runs per stage of a step (module docstring).
 
 @_inline
-def _lanes_control(L, nb, k, x_r, y_r, th_r, v_r, om_r, wdd_scale, c):
+def _lanes_control(L, nb, k, x_r, y_r, th_r, v_r, om_r, wdd_scale, c, libm):
     """Pose error (2), metrics (7), Kanayama (3), inverse kinematics (4)-(5), w_d', the surface and (17) less the
-    network's estimate, the NDO's estimate (21)."""
+    network's estimate, the NDO's estimate (21); sine and cosine libm's when ``libm`` (a constant of the layout:
+    LLVM drops the other branch), else fdlibm's vectorised :func:`sincos`."""
     for l in range(nb):
         x, y, th, w_R, w_L = L[X, l], L[Y, l], L[TH, l], L[W_R, l], L[W_L, l]
         dx = x_r - x
         dy = y_r - y
-        sn, cs = sincos(th)
+        if libm:
+            sn, cs = math.sin(th), math.cos(th)
+        else:
+            sn, cs = sincos(th)
         e_x = cs * dx + sn * dy
         e_y = cs * dy - sn * dx
         e_th = wrap_fast(th_r - th)
         dev = math.sqrt(dx * dx + dy * dy)
-        se, ce = sincos(e_th)
+        if libm:
+            se, ce = math.sin(e_th), math.cos(e_th)
+        else:
+            se, ce = sincos(e_th)
         v_d = v_r * ce + c.k_x * e_x
         om_d = om_r + v_r * (c.k_y * e_y + c.k_theta * se)
         wd_R = (v_d + c.half_track * om_d) * c.inv_radius
@@ -369,9 +387,10 @@ def _lanes_learn(L, nb, q, c, PHI, WN):
         WN[q, 1, l] -= (c.learn_L * L[S_L, l]) * PHI[q, l]
 
 
-@_lanes_kernel
-def lanes_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
-    """Advance every run by steps ``k0 .. k0 + n - 1`` (lanes layout), ``xi[r, j]`` run r's normals of step k0 + j."""
+@_inline
+def _lanes_steps(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi, libm):
+    """Advance every run by steps ``k0 .. k0 + n - 1``, a block of runs at a time (the lanes layouts), ``xi[r, j]``
+    run r's normals of step k0 + j; libm's sine and cosine when ``libm`` (:func:`_lanes_control`)."""
     n_runs, nn = S.shape[1], c.n_neurons
     L = np.zeros((N_LOCAL, BLOCK))  # the block's state and scratch, rows (field, run): BLOCK is a constant stride
     PHI = np.zeros((max(nn, 1), BLOCK))
@@ -390,7 +409,7 @@ def lanes_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
         for j in range(n):
             k = k0 + j
             _lanes_control(L, nb, k, reference[k, 0], reference[k, 1], reference[k, 2], reference[k, 3],
-                           reference[k, 4], c.inv_control_dt if k > 0 else 0.0, c)
+                           reference[k, 4], c.inv_control_dt if k > 0 else 0.0, c, libm)
             for q in range(nn):
                 live[q] = _lanes_live(L, nb, centers[q], c.exponent_scale)
                 if live[q]:
@@ -412,6 +431,20 @@ def lanes_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
             for q in range(nn):
                 W[q, 0, b0 + l] = WN[q, 0, l]
                 W[q, 1, b0 + l] = WN[q, 1, l]
+
+
+@_lanes_kernel
+def lanes_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
+    """Advance every run by steps ``k0 .. k0 + n - 1`` (lanes layout: fdlibm's vectorised sine and cosine, fused
+    multiply-adds), ``xi[r, j]`` run r's normals of step k0 + j."""
+    _lanes_steps(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi, False)
+
+
+@_kernel
+def exact_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
+    """Advance every run by steps ``k0 .. k0 + n - 1`` (exact layout: the lanes layout with libm's sine and cosine
+    a lane at a time and no fast-math flag); arguments as :func:`lanes_chunk`."""
+    _lanes_steps(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi, True)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -503,7 +536,7 @@ def scalar_chunk(k0, n, c, reference, centers, edges, rough, roll, S, W, M, xi):
         M[ABS_ETH, r], M[DEV_MAX, r], M[DIV_STEP, r] = eth_sum, dev_max, div_step
 
 
-_CHUNK_KERNELS = {"lanes": lanes_chunk, "scalar": scalar_chunk}
+_CHUNK_KERNELS = {"lanes": lanes_chunk, "exact": exact_chunk, "scalar": scalar_chunk}
 
 
 def reference_metrics(sim: Simulation, seeds: Sequence[int], layout: str = "lanes") -> dict[str, np.ndarray]:
@@ -515,7 +548,7 @@ def reference_metrics(sim: Simulation, seeds: Sequence[int], layout: str = "lane
         A configuration the kernel supports (:func:`check_supported`); validated as :func:`simulate` does.
     seeds : sequence of int
         One run per seed, on the engine's noise stream of that seed.
-    layout : {'lanes', 'scalar'}
+    layout : {'lanes', 'exact', 'scalar'}
         The kernel's layout (module docstring); the same numbers to rounding.
 
     Returns
