@@ -416,26 +416,33 @@ def test_the_program_loads_openblas_on_one_thread_and_keeps_the_users_choice(mon
         assert out[False][0] == "None" and int(out[False][1]) > 1, out  # without it, OpenBLAS's pool
 
 
-def test_bench_reads_the_hosts_ceiling_as_throughput_of_processes_at_once():
-    """The threads' ceiling: cores x (one process alone) / (cores processes together), median over the pairs; and
-    the real processes run (a tiny piece of work: a positive ratio, at most the cores and some timing slack)."""
-    from ddmr_cli.cli.bench import host_ceiling
+def test_bench_reads_the_threads_ratio_and_its_ceilings_round_by_round():
+    """The threads' line and its two ceilings: each ceiling cores x (one alone) / (cores at once), the ratios and
+    the shares medians over the rounds, each share of a round's own figures; the round's six timings are taken in
+    turn (a drift of the host moves all three alike)."""
+    from ddmr_cli.cli.bench import scaling
 
-    walls = iter([1.0, 1.25, 1.0, 2.0, 1.0, 1.0])  # alone, together, ...: ratios 1.6, 1.0, 2.0
-    assert abs(host_ceiling(2, 10, repeats=3, wall=lambda n, _it: next(walls)) - 1.6) < 1e-12
-    assert 0.0 < host_ceiling(2, 1000, repeats=1) < 4.0
+    calls = []
+    rounds = iter([(1.0, 1.5, 1.0, 0.5, 1.0, 1.0),    # ratio 1.5, host 4.0 (a fast pair), own 2.0
+                   (1.0, 1.8, 1.0, 1.0, 1.0, 1.25),   # ratio 1.8, host 2.0, own 1.6
+                   (1.0, 1.2, 1.0, 2.0, 1.0, 2.0)])   # ratio 1.2, host 1.0, own 1.0
+    current = []
 
+    def measure(i):
+        def timed():
+            if i == 0:
+                current[:] = next(rounds)
+            calls.append(i)
+            return current[i]
+        return timed
 
-def test_bench_reads_the_engines_own_ceiling_from_independent_batches():
-    """The engine's own ceiling: cores x (one batch alone) / (cores batches at once, a thread each), median over the
-    pairs; and real batches run end to end (a tiny one: a positive, finite ratio; its size is timing noise on a busy
-    test machine, 5.7 on one CI run)."""
-    from ddmr_cli.cli.bench import engine_ceiling
-
-    walls = iter([1.0, 1.0, 1.0, 1.25, 1.0, 2.0])  # alone, together, ...: ratios 2.0, 1.6, 1.0
-    assert abs(engine_ceiling(2, 1, "smc", 0.1, repeats=3, wall=lambda n: next(walls)) - 1.6) < 1e-12
-    ratio = engine_ceiling(2, 4, "smc", 0.05, repeats=1)
-    assert ratio > 0.0 and math.isfinite(ratio)
+    sc = scaling(2, 1, "smc", 0.1, repeats=3, measures=[measure(i) for i in range(6)])
+    assert calls == list(range(6)) * 3
+    assert abs(sc.ratio - 1.5) < 1e-12 and abs(sc.host - 2.0) < 1e-12 and abs(sc.own - 1.6) < 1e-12
+    assert abs(sc.of_host - 0.9) < 1e-12  # shares 0.375, 0.9, 1.2
+    assert abs(sc.of_own - 1.125) < 1e-12  # shares 0.75, 1.125, 1.2
+    real = scaling(2, 4, "smc", 0.05, iterations=1000, repeats=1)  # the real timings run end to end
+    assert all(math.isfinite(v) and v > 0.0 for v in real)
 
 
 def test_bench_names_whether_ddmr_loads_from_bytecode(monkeypatch, tmp_path):

@@ -6,10 +6,10 @@ Prints the machine line, then
    the same loop on the same noise streams (:mod:`ddmr_cli.bench.reference`), timed in the same process, and the
    ratios, of the engine as ``ddmr run`` runs it and without the seed bands the reference does not compute (the
    target: the engine at most 1.5x slower at equal work), against the kernel computing the engine's numbers (its
-   exact layout) and with fast numerics (its lanes layout: numbers the engine cannot take); on every core, beside what every core gives independent
-   processes of pure CPU work on this machine (:func:`host_ceiling`, the most threads can give) and what it gives
-   independent batches of the engine's own work, one a thread (:func:`engine_ceiling`: what splitting one batch
-   costs), as plain Python (the fallback), and the compile and cache-load times;
+   exact layout) and with fast numerics (its lanes layout: numbers the engine cannot take); on every core, beside
+   what every core gives independent processes of pure CPU work on this machine (the most threads can give) and
+   independent batches of the engine's own work, one a thread (what splitting one batch costs), all three timed in
+   the same rounds (:func:`scaling`); as plain Python (the fallback), and the compile and cache-load times;
 2. wall time and peak memory of a single ``ddmr run`` (process start to exit, with its plots);
 3. wall time of ``ddmr run -m +experiment=table4`` and of the report built from it (and when the report printed
    its verdicts); 3b. of a 200-job sweep of one-seed 0.2 s runs (the per-job overhead), and Hydra's own work per
@@ -38,7 +38,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple, Sequence
 
 CONTROLLERS = ("pid", "smc", "smc_ndo", "smc_ndo_nno")
 #: the controllers the reference kernel runs (ddmr_cli/bench/reference.py)
@@ -47,9 +47,11 @@ REFERENCE_CONTROLLERS = ("smc_ndo", "smc_ndo_nno")
 REFERENCE_TARGET = 1.5
 #: alternating repeats of each figure that is a median (the reference comparison; the threads' ratio with --quick)
 REPEATS = 3
-#: alternating pairs of the threads' ratio and its two ceilings in the full bench: the host's two cores drift apart in
-#: speed by turns for seconds at a time, and a median of 3 pairs read 1.63x, 1.76x and 1.81x on one tree within 20
-#: minutes (issue 28); a pair of the threads' line is about 0.3 s of SMC-NDO-NNO
+#: rounds of the threads' ratio and its two ceilings in the full bench (:func:`scaling`), each a pair of all three: the
+#: host's two cores drift apart in speed by turns for seconds at a time, and a median of 3 pairs read 1.63x, 1.76x and
+#: 1.81x on one tree within 20 minutes (issue 28); timed one after the other, 7 pairs of the threads' line read 1.25x
+#: and then 7 of the host's ceiling 1.98x, where the line alone read 1.66-1.83x in four medians of 7 pairs minutes
+#: later; a round is about 1.5 s
 THREAD_REPEATS = 7
 #: wall-time targets [s] on a 2-core machine (issue 28), for the full sizes: each line prints its ratio to them
 WALL_TARGETS = {
@@ -186,27 +188,7 @@ def _batches_wall(sims: list, batch: int) -> float:
         return time.perf_counter() - started
 
 
-def engine_ceiling(cores: int, batch: int, controller: str, duration: float, repeats: int = REPEATS,
-                   wall: Callable[[int], float] | None = None) -> float:
-    """What ``cores`` cores give the engine's own work on this machine now: ``cores`` independent batches at once,
-    one a thread, over one alone (the throughput ratio), the median of ``repeats`` alternating pairs (``wall(n)``:
-    seconds of ``n`` batches at once; :func:`_batches_wall` by default). The engine's threads split one batch and
-    meet twice a chunk (after the steps, after the bands' reduction) around its serial set-up and metrics; their
-    ratio over this one is what that splitting costs, apart from what the host gives (:func:`host_ceiling`)."""
-    import statistics
-
-    if wall is None:
-        sims = [_simulation(controller, duration) for _ in range(cores)]
-        _batches_wall(sims[:1], batch)  # warm-up, untimed: the step loop loaded (or compiled), first calls made
-
-        def wall(n: int) -> float:
-            return _batches_wall(sims[:n], batch)
-
-    alone, together = _alternating(repeats, lambda: wall(1), lambda: wall(cores))
-    return statistics.median(cores * a / t for a, t in zip(alone, together))
-
-
-#: a fixed piece of pure CPU work (no memory traffic, no threads, no library) for :func:`host_ceiling`
+#: a fixed piece of pure CPU work (no memory traffic, no threads, no library) for the host's ceiling (:func:`scaling`)
 _CPU_WORK = "s = 0\nfor i in range({n}):\n    s += i * i\n"
 
 
@@ -220,16 +202,54 @@ def _processes_wall(n_processes: int, iterations: int) -> float:
     return time.perf_counter() - started
 
 
-def host_ceiling(cores: int, iterations: int, repeats: int = REPEATS,
-                 wall: Callable[[int, int], float] = _processes_wall) -> float:
-    """What ``cores`` cores give this machine's own CPU work: the throughput of ``cores`` independent processes
-    at once over one alone, the median of ``repeats`` alternating pairs (``wall(n, iterations)``: seconds of
-    ``n`` processes of the same work started together). No program's threads can scale further; on a host whose
-    "cores" share a physical core or are taken by other guests it is well under ``cores``."""
+class Scaling(NamedTuple):
+    """The threads' line and its two ceilings, measured in the same rounds (:func:`scaling`)."""
+
+    one: float  # median throughput on one thread [steps/s]
+    many: float  # ... on every core
+    ratio: float  # median over the rounds of many / one
+    host: float  # the host's ceiling: cores x (one process alone) / (cores processes at once), median over the rounds
+    own: float  # the engine's own ceiling: the same of independent batches, one a thread
+    of_host: float  # median over the rounds of the round's ratio over its host's ceiling
+    of_own: float  # ... over its engine's own ceiling
+
+
+def _ceiling(cores: int, alone: float, together: float) -> float:
+    """Throughput of ``cores`` pieces of work at once over one alone, from their wall seconds."""
+    return cores * alone / together
+
+
+def scaling(cores: int, batch: int, controller: str, duration: float, iterations: int = 10_000_000,
+            repeats: int = THREAD_REPEATS, measures: Sequence[Callable[[], float]] | None = None) -> Scaling:
+    """One thread against every core, beside what ``cores`` cores give this machine's own CPU work (the host's
+    ceiling: ``cores`` independent processes of :data:`_CPU_WORK` at once against one alone; no program's threads
+    can scale further, and on a host whose "cores" share a physical core or are taken by other guests it is well
+    under ``cores``) and what they give the engine's own work (its ceiling: ``cores`` independent batches at once,
+    one a thread, ``simulate(threads=1)`` each, against one alone; the engine's threads split one batch and meet
+    at its chunks, around its serial set-up and metrics: their ratio over this one is what the splitting costs).
+
+    Each of ``repeats`` rounds times one pair of each in turn (:func:`_alternating`), so that a drift of the host's
+    speed, which lasts seconds to minutes, moves all three alike; each share is the median over the rounds of the
+    round's own quotient. ``measures``: the six timings of a round (for tests): throughputs on one thread and on
+    every core [steps/s], then wall seconds of one process, of ``cores`` processes, of one batch and of ``cores``
+    batches."""
     import statistics
 
-    alone, together = _alternating(repeats, lambda: wall(1, iterations), lambda: wall(cores, iterations))
-    return statistics.median(cores * a / t for a, t in zip(alone, together))
+    if measures is None:
+        sims = [_simulation(controller, duration) for _ in range(cores)]
+        engine_throughput(1, controller, 0.02, threads=0)  # warm-up, untimed: the step loop loaded, first calls made
+        _batches_wall(sims[:1], batch)
+        measures = (lambda: engine_throughput(batch, controller, duration, threads=1),
+                    lambda: engine_throughput(batch, controller, duration, threads=0),
+                    lambda: _processes_wall(1, iterations), lambda: _processes_wall(cores, iterations),
+                    lambda: _batches_wall(sims[:1], batch), lambda: _batches_wall(sims, batch))
+    one, many, process, processes, batch_alone, batches = _alternating(repeats, *measures)
+    ratios = [m / o for o, m in zip(one, many)]
+    host = [_ceiling(cores, a, t) for a, t in zip(process, processes)]
+    own = [_ceiling(cores, a, t) for a, t in zip(batch_alone, batches)]
+    median = statistics.median
+    return Scaling(median(one), median(many), median(ratios), median(host), median(own),
+                   median(r / c for r, c in zip(ratios, host)), median(r / c for r, c in zip(ratios, own)))
 
 
 def hydra_job_floor(repeats: int) -> tuple[float, float]:
@@ -397,23 +417,26 @@ def main(argv: list[str] | None = None) -> int:
         print(f"   {controller:<18}" + "".join(f"{f / 1e6:>12.3f} M/s" for f in figures))
     reference_lines(tuple(b for b in batches if b > 1), durations)
     cores, big = thread_count(0), batches[-1]
-    pairs = REPEATS if quick else THREAD_REPEATS
-    with measuring(f"one thread against {cores} cores"):
-        one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big], repeats=pairs)
-    print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the median "
-          f"of {pairs} alternating pairs; one thread {one / 1e6:.3f} M/s)")
     if cores > 1 and not quick:  # quick: a tenth of a second of work is too short to read the machine by
-        with measuring(f"what {cores} cores give independent processes"):
-            ceiling = host_ceiling(cores, 10_000_000, repeats=pairs)
-        print(f"   this machine's own ceiling: {cores} independent processes of pure CPU work at once run at {ceiling:.2f}x "
-              f"one alone (the median of {pairs} alternating pairs), the most {cores} threads can give here; the "
-              f"engine's threads reach {ratio / ceiling:.0%} of it")
-        with measuring(f"{cores} independent batches at once"):
-            own = engine_ceiling(cores, big, "smc_ndo_nno", durations[big], repeats=pairs)
+        pairs = THREAD_REPEATS
+        with measuring(f"one thread against {cores} cores, beside {cores} independent processes and batches"):
+            sc = scaling(cores, big, "smc_ndo_nno", durations[big], repeats=pairs)
+        one = sc.one
+        print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {sc.many / 1e6:.3f} M/s ({sc.ratio:.2f}x one thread; one "
+              f"thread {sc.one / 1e6:.3f} M/s), the median of {pairs} rounds, each timing a pair of this line and of "
+              f"each ceiling below in turn, so that the host's drift moves the three alike")
+        print(f"   this machine's own ceiling: {cores} independent processes of pure CPU work at once run at "
+              f"{sc.host:.2f}x one alone, the most {cores} threads can give here; the engine's threads reach "
+              f"{sc.of_host:.0%} of it (the median of the rounds' own quotients)")
         print(f"   the engine's own ceiling: {cores} independent batches of the same runs at once, one a thread "
-              f"(nothing shared), run at {own:.2f}x one alone (the median of {pairs} alternating pairs); one batch "
-              f"split over {cores} threads reaches {ratio / own:.0%} of it (the rest: the meeting points of its "
-              f"chunks, its serial set-up and metrics)")
+              f"(nothing shared), run at {sc.own:.2f}x one alone; one batch split over {cores} threads reaches "
+              f"{sc.of_own:.0%} of it (the rest: the meeting points of its chunks, its serial set-up and metrics)")
+    else:
+        pairs = REPEATS
+        with measuring(f"one thread against {cores} cores"):
+            one, many, ratio = thread_scaling(big, "smc_ndo_nno", durations[big], repeats=pairs)
+        print(f"   all {cores} cores, batch {big}, smc_ndo_nno: {many / 1e6:.3f} M/s ({ratio:.2f}x one thread: the "
+              f"median of {pairs} alternating pairs; one thread {one / 1e6:.3f} M/s)")
     with measuring("the laws as plain Python"):
         python = python_throughput("smc_ndo_nno", 0.05 if quick else 0.2)
     print(f"   the same laws as plain Python (the fallback without numba), smc_ndo_nno: {python / 1e6:.4f} M/s; "
