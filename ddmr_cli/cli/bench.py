@@ -51,7 +51,7 @@ REPEATS = 3
 #: host's two cores drift apart in speed by turns for seconds at a time, and a median of 3 pairs read 1.63x, 1.76x and
 #: 1.81x on one tree within 20 minutes (issue 28); timed one after the other, 7 pairs of the threads' line read 1.25x
 #: and then 7 of the host's ceiling 1.98x, where the line alone read 1.66-1.83x in four medians of 7 pairs minutes
-#: later; a round is about 1.5 s
+#: later; a round is about 2.5 s (7 rounds: 18-19 s)
 THREAD_REPEATS = 7
 #: wall-time targets [s] on a 2-core machine (issue 28), for the full sizes: each line prints its ratio to them
 WALL_TARGETS = {
