@@ -25,7 +25,7 @@ the kernel reads the very same streams; drawing them is part of the timed work (
 
 Three layouts of the same loop (``layout=``):
 
-``"lanes"`` (the default, and the faster: the one ``ddmr bench`` times)
+``"lanes"`` (the default, and the fastest: ``ddmr bench`` prints it beside the exact layout)
     Runs are the inner, SIMD axis: blocks of :data:`BLOCK` runs step together, the state of a block in one local
     array of rows ``(field, run)`` with a constant row length, so that every stage of a step is a loop over the
     block's runs that LLVM vectorises (AVX-512: 8 runs an instruction; a partial block runs the same code on
