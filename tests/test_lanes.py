@@ -15,6 +15,7 @@ import pytest
 from ddmr_cli import paper_simulation, simulate
 from ddmr_cli.compiled import jit_enabled
 from ddmr_cli.control.base import LANES
+from ddmr_cli.engine.bands import BAND_CHANNELS
 from ddmr_cli.engine.simulation import in_lanes
 
 pytestmark = pytest.mark.skipif(not jit_enabled(), reason="the lanes loop runs compiled only (numba missing or "
@@ -94,7 +95,7 @@ def test_chunks_cut_between_control_instants_start_from_the_runs_holds(monkeypat
     seeds, kept = range(LANES + 7), [0, LANES + 3]
     a = simulate(sim, seeds, threads=1, lanes=False, keep_series=kept)
     assert a.bands["t"][1] == pytest.approx(2 * sim.dt)  # a band grid point every other step
-    per_run_step = 8 * 8 // 2  # eight band channels every other step
+    per_run_step = 8 * len(BAND_CHANNELS) // 2  # bytes of the band channels, every other step
     monkeypatch.setattr(simulation_module, "CHUNK_BUDGET", 67 * len(seeds) * per_run_step)
     monkeypatch.setattr(simulation_module, "MIN_CHUNK_STEPS", 1)
     done = []
